@@ -1,0 +1,1 @@
+"""Sub-commands of the ``pneusim`` command line, one module each."""

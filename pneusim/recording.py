@@ -1,0 +1,524 @@
+"""Recordings: read, check, write and summarize ``pneusim-recording/1`` data.
+
+A recording is what a rig's data acquisition writes (or what a simulated run
+saves): sampled valve command, piston position and, where the rig has the
+sensors, chamber pressures.  The contract is ``shared/spec/recording-format.md``;
+this module implements it exactly.  Two forms share one :class:`Recording`:
+
+* CSV: ``# key: value`` metadata lines, one header row, numeric rows;
+* MATLAB ``.mat``: the column names as column vectors, ``sample_time_s`` as a
+  scalar, the other metadata as char arrays.
+
+Every departure from the contract is refused with an
+:class:`~pneusim.errors.InputFileError` naming the file, the line (CSV, 1-based,
+metadata lines counted) or the variable (``.mat``), the column, and what was
+expected.  Nothing is repaired and nothing is half-loaded.  In optional and
+extra columns an empty cell or ``nan`` is a gap: it is kept as NaN, never
+interpolated (see :meth:`Recording.gap_mask`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from .errors import InputFileError
+from .rig import known_stroke_m
+
+__all__ = ["Recording", "read_recording", "write_recording", "summarize", "FORMAT",
+           "REQUIRED_COLUMNS", "OPTIONAL_COLUMNS", "PRESSURE_COLUMNS", "MIN_SAMPLES"]
+
+FORMAT = "pneusim-recording/1"
+REQUIRED_COLUMNS = ("time_s", "valve_cmd_V", "position_m")
+#: ``reference_m`` is required too when ``loop: closed``
+OPTIONAL_COLUMNS = ("reference_m", "pressure_a_Pa", "pressure_b_Pa", "supply_Pa")
+PRESSURE_COLUMNS = ("pressure_a_Pa", "pressure_b_Pa", "supply_Pa")
+SIGNALS = ("time_s", "reference_m", "valve_cmd_V", "position_m") + PRESSURE_COLUMNS
+CONTROLLER_KEYS = ("kp_V_per_m", "u0_V", "u_min_V", "u_max_V")
+MIN_SAMPLES = 50
+TIME_RTOL = 1e-6              #: spacing tolerance, relative to ``sample_time_s``
+POSITION_MARGIN = 0.01        #: position allowed in [-1 %, 101 %] of the stroke
+PRESSURE_MAX_PA = 2.0e6
+
+_KEY = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
+_META = re.compile(r"#\s*([A-Za-z][A-Za-z0-9_]*)\s*:(.*)\Z")
+_NUMBER = re.compile(r"\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*\Z|\s*[+-]?(nan|inf|infinity)\s*\Z", re.I)
+
+
+@dataclasses.dataclass
+class _Place:
+    """Where values came from, to name them in a message: file, metadata lines, rows."""
+
+    path: str | Path | None = None
+    key_lines: Mapping[str, int] = dataclasses.field(default_factory=dict)
+    header_line: int | None = None
+    first_row_line: int | None = None   #: CSV line of sample 0; None: name samples instead
+
+    def fail(self, message: str, field: str | None = None, *, key: str | None = None,
+             row: int | None = None, header: bool = False):
+        line = None
+        if key is not None:
+            line = self.key_lines.get(key, self.header_line)
+        elif row is not None:
+            if self.first_row_line is None:
+                message = f"sample {row + 1}: {message}"
+            else:
+                line = self.first_row_line + row
+        elif header:
+            line = self.header_line
+        raise InputFileError(message, path=self.path, line=line, field=field)
+
+
+@dataclasses.dataclass(eq=False)
+class Recording:
+    """One sampled experiment (measured on a rig or simulated).
+
+    Attributes
+    ----------
+    time_s, valve_cmd_V, position_m:
+        Required signals, float arrays of shape (N,): sample instants [s], valve
+        command [V] and piston position from the retracted end [m].
+    reference_m:
+        Position reference of a closed loop [m], shape (N,), or ``None``.
+    pressure_a_Pa, pressure_b_Pa, supply_Pa:
+        Absolute cap-end, rod-end and supply pressures [Pa], shape (N,), or ``None``.
+        NaN marks a gap (a sample the sensor did not deliver).
+    metadata:
+        Every ``key: value`` pair, values as text; ``format`` and
+        ``sample_time_s`` are always present (``format`` is filled in when
+        missing from a recording built in code).
+    extra:
+        Other columns, ``{name: float array (N,)}``, kept and carried along.
+    source:
+        File the recording was read from, or ``None``.
+
+    Raises
+    ------
+    InputFileError
+        On construction, for the same faults :func:`read_recording` refuses,
+        except the minimum length and the stroke range (both file-level checks).
+    """
+
+    time_s: np.ndarray
+    valve_cmd_V: np.ndarray
+    position_m: np.ndarray
+    reference_m: np.ndarray | None = None
+    pressure_a_Pa: np.ndarray | None = None
+    pressure_b_Pa: np.ndarray | None = None
+    supply_Pa: np.ndarray | None = None
+    metadata: dict[str, str] = dataclasses.field(default_factory=dict)
+    extra: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    source: str | None = None
+
+    def __post_init__(self):
+        place = _Place()
+        meta = {"format": FORMAT} if "format" not in self.metadata else {}
+        for key, value in self.metadata.items():
+            if not isinstance(key, str) or not _KEY.match(key):
+                place.fail("metadata keys must be names (letters, digits, _)", str(key))
+            value = value if isinstance(value, str) else str(value)
+            if "\n" in value or "\r" in value:
+                place.fail("metadata values must be a single line", key)
+            meta[key] = value.strip()
+        self.metadata = meta
+        for name in SIGNALS:
+            if getattr(self, name) is not None:
+                setattr(self, name, _as_vector(getattr(self, name), name, place))
+        self.extra = {str(k): _as_vector(v, str(k), place) for k, v in self.extra.items()}
+        for name in self.extra:
+            if name in SIGNALS:
+                place.fail("extra column has the name of a signal; pass it as that signal", name)
+        _check_metadata(self.metadata, place)
+        _check_columns(self.columns(), self.metadata, place, stroke_m=None, min_samples=0)
+
+    # ----------------------------------------------------------------- access
+    @property
+    def sample_time_s(self) -> float:
+        """Nominal sample time [s], from the metadata."""
+        return float(self.metadata["sample_time_s"])
+
+    @property
+    def rig(self) -> str | None:
+        """Nominal rig id (``paper1-mre``, ``paper2-enfield``, a user's rig), or ``None``."""
+        return self.metadata.get("rig") or None
+
+    @property
+    def loop(self) -> str | None:
+        """``'open'``, ``'closed'`` or ``None`` when the metadata does not say."""
+        return self.metadata.get("loop") or None
+
+    @property
+    def controller(self) -> dict[str, float] | None:
+        """Constants of the proportional controller, or ``None``.
+
+        ``u = clip(u0_V + kp_V_per_m * (reference_m - position_m), u_min_V, u_max_V)``
+        at each sample, held until the next.  Keys: ``kp_V_per_m`` [V/m],
+        ``u0_V``, ``u_min_V``, ``u_max_V`` [V].
+        """
+        if self.metadata.get("controller") != "proportional":
+            return None
+        return {key: float(self.metadata[key]) for key in CONTROLLER_KEYS}
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples N."""
+        return int(self.time_s.shape[0])
+
+    def __len__(self) -> int:
+        return self.n_samples
+
+    @property
+    def has_pressures(self) -> bool:
+        """True when both chamber pressures (A and B) were recorded."""
+        return self.pressure_a_Pa is not None and self.pressure_b_Pa is not None
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """Present columns, ``{name: array (N,)}``: signals in spec order, then extras."""
+        cols = {name: getattr(self, name) for name in SIGNALS if getattr(self, name) is not None}
+        cols.update(self.extra)
+        return cols
+
+    def gap_mask(self, name: str) -> np.ndarray:
+        """Boolean array (N,), True where column ``name`` has a gap (NaN)."""
+        return np.isnan(self.columns()[name])
+
+    def slice(self, t_start_s: float | None = None, t_end_s: float | None = None) -> "Recording":
+        """Samples with ``t_start_s <= time_s < t_end_s`` [s] as a new Recording.
+
+        ``None`` leaves that end open.  Time is not shifted.  The result may hold
+        fewer than :data:`MIN_SAMPLES` samples (that minimum applies to files).
+        """
+        keep = np.ones(self.n_samples, dtype=bool)
+        if t_start_s is not None:
+            keep &= self.time_s >= t_start_s
+        if t_end_s is not None:
+            keep &= self.time_s < t_end_s
+        if not keep.any():
+            raise InputFileError(f"no sample in [{t_start_s}, {t_end_s}) s", path=self.source, field="time_s")
+        signals = {n: (None if getattr(self, n) is None else getattr(self, n)[keep].copy()) for n in SIGNALS}
+        return Recording(**signals, metadata=dict(self.metadata),
+                         extra={k: v[keep].copy() for k, v in self.extra.items()}, source=self.source)
+
+
+def _as_vector(values, name: str, place: _Place) -> np.ndarray:
+    array = np.asarray(values)
+    if array.ndim == 2 and 1 in array.shape:
+        array = array.reshape(-1)
+    if array.ndim != 1 or array.dtype.kind not in "biuf":
+        place.fail(f"expected a 1-D numeric array, got shape {array.shape} of {array.dtype}", name)
+    return array.astype(float)
+
+
+# ------------------------------------------------------------------ checks
+def _check_metadata(meta: Mapping[str, str], place: _Place) -> None:
+    fmt = meta.get("format")
+    if fmt is None:
+        place.fail(f"missing metadata 'format'; expected '# format: {FORMAT}' before the header",
+                   "format", header=True)
+    if fmt != FORMAT:
+        what = "unknown format version" if fmt.startswith("pneusim-recording/") else "unknown format"
+        place.fail(f"{what} {fmt!r}; expected {FORMAT!r}", "format", key="format")
+    if "sample_time_s" not in meta:
+        place.fail("missing metadata 'sample_time_s'; expected the sample time in seconds, "
+                   "e.g. '# sample_time_s: 0.01'", "sample_time_s", header=True)
+    dt = _number(meta, "sample_time_s", place)
+    if not dt > 0:
+        place.fail(f"sample time must be positive, got {meta['sample_time_s']!r}", "sample_time_s",
+                   key="sample_time_s")
+    if "loop" in meta and meta["loop"] not in ("open", "closed"):
+        place.fail(f"expected 'open' or 'closed', got {meta['loop']!r}", "loop", key="loop")
+    if "controller" in meta:
+        if meta["controller"] != "proportional":
+            place.fail(f"unknown controller {meta['controller']!r}; expected 'proportional'",
+                       "controller", key="controller")
+        for key in CONTROLLER_KEYS:
+            if key not in meta:
+                place.fail(f"'controller: proportional' needs the constant {key!r} in the metadata "
+                           f"(all of {', '.join(CONTROLLER_KEYS)})", key, key="controller")
+            _number(meta, key, place)
+        if float(meta["u_min_V"]) > float(meta["u_max_V"]):
+            place.fail("u_min_V must not exceed u_max_V", "u_min_V", key="u_min_V")
+
+
+def _number(meta: Mapping[str, str], key: str, place: _Place) -> float:
+    text = meta[key]
+    value = float(text) if _NUMBER.match(text) else math.nan
+    if not math.isfinite(value):
+        place.fail(f"expected a finite number, got {text!r}", key, key=key)
+    return value
+
+
+def _check_columns(cols: Mapping[str, np.ndarray], meta: Mapping[str, str], place: _Place,
+                   stroke_m: float | None, min_samples: int = MIN_SAMPLES) -> None:
+    required = REQUIRED_COLUMNS + (("reference_m",) if meta.get("loop") == "closed" else ())
+    for name in required:
+        if name not in cols:
+            why = " (required by 'loop: closed')" if name == "reference_m" else ""
+            place.fail(f"required column {name!r} missing{why}; columns present: {', '.join(cols)}",
+                       name, header=True)
+    n = cols["time_s"].shape[0]
+    for name, values in cols.items():
+        if values.shape[0] != n:
+            place.fail(f"has {values.shape[0]} samples but time_s has {n}", name)
+    if n < min_samples:
+        place.fail(f"only {n} samples; a recording needs at least {min_samples}", "time_s", header=True)
+    for name, values in cols.items():
+        bad = np.flatnonzero(~np.isfinite(values) if name in required else np.isinf(values))
+        if bad.size:
+            what = "NaN" if np.isnan(values[bad[0]]) else "infinity"
+            place.fail(f"{what} in a required column; expected a finite number" if name in required
+                       else f"{what}; expected a finite number or an empty cell (gap)", name, row=int(bad[0]))
+    _check_time(cols["time_s"], meta, place)
+    for name in PRESSURE_COLUMNS:
+        if name in cols:
+            with np.errstate(invalid="ignore"):
+                bad = np.flatnonzero((cols[name] < 0) | (cols[name] > PRESSURE_MAX_PA))
+            if bad.size:
+                place.fail(f"pressure {cols[name][bad[0]]!r} Pa is outside [0 Pa, 2 MPa]; expected absolute "
+                           "pressure in Pa (gauge pressure, or bar/kPa written as Pa?)", name, row=int(bad[0]))
+    if stroke_m is not None:
+        pos = cols["position_m"]
+        lo, hi = -POSITION_MARGIN * stroke_m, (1 + POSITION_MARGIN) * stroke_m
+        bad = np.flatnonzero((pos < lo) | (pos > hi))
+        if bad.size:
+            place.fail(f"position {pos[bad[0]]!r} m is outside [-1 %, 101 %] of the stroke {stroke_m!r} m "
+                       f"([{lo:.6g}, {hi:.6g}] m); it looks like millimetres or volts written as metres",
+                       "position_m", row=int(bad[0]))
+
+
+def _check_time(t: np.ndarray, meta: Mapping[str, str], place: _Place) -> None:
+    if t.shape[0] < 2:
+        return
+    dt = float(meta["sample_time_s"])
+    step = np.diff(t)
+    bad = np.flatnonzero(step <= 0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        place.fail(f"time {t[i]!r} s is not after the previous sample {t[i - 1]!r} s; "
+                   "expected strictly increasing time", "time_s", row=i)
+    tol = TIME_RTOL * dt
+    median = float(np.median(step))
+    if abs(median - dt) > tol:
+        place.fail(f"the time_s spacing is {median!r} s but sample_time_s is {dt!r} s; "
+                   f"expected them to agree within {TIME_RTOL:g} relative", "sample_time_s", key="sample_time_s")
+    bad = np.flatnonzero(np.abs(step - dt) > tol)
+    if bad.size:
+        i = int(bad[0]) + 1
+        place.fail(f"time step {step[i - 1]!r} s from the previous sample; expected uniform sampling at "
+                   f"{dt!r} s within {TIME_RTOL:g} relative", "time_s", row=i)
+
+
+# ------------------------------------------------------------------ reading
+def read_recording(path: str | Path, stroke_m: float | None = None) -> Recording:
+    """Read and check a ``pneusim-recording/1`` file (``.csv`` or ``.mat``).
+
+    Parameters
+    ----------
+    path:
+        The file; its suffix chooses the form.
+    stroke_m:
+        Stroke [m] for the position range check (position within
+        [-1 %, 101 %] of it).  ``None``: the stroke of the rig named in the
+        metadata when it is a shipped rig, else no range check.
+
+    Returns
+    -------
+    Recording
+
+    Raises
+    ------
+    InputFileError
+        For every fault listed in the spec's "Bad input" section and any other
+        departure from the format, naming file, line or variable, and column.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".csv", ".mat"):
+        raise InputFileError(f"unknown file type {path.suffix or '(none)'!r}; expected a .csv or .mat recording",
+                             path=path)
+    if not path.is_file():
+        raise InputFileError("file not found" if not path.exists() else "not a file", path=path)
+    meta, cols, place = (_parse_csv if suffix == ".csv" else _parse_mat)(path)
+    _check_metadata(meta, place)
+    if stroke_m is None and meta.get("rig"):
+        stroke_m = known_stroke_m(meta["rig"])
+    _check_columns(cols, meta, place, stroke_m=stroke_m)
+    signals = {name: cols.pop(name) for name in SIGNALS if name in cols}
+    return Recording(**signals, metadata=meta, extra=cols, source=str(path))
+
+
+def _parse_csv(path: Path):
+    data = path.read_bytes()
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputFileError(f"not UTF-8 text (byte 0x{data[exc.start]:02x}); expected a UTF-8 CSV file",
+                             path=path, line=data.count(b"\n", 0, exc.start) + 1) from None
+    lines = [line.rstrip("\r") for line in text.split("\n")]
+    while lines and not lines[-1].strip():
+        lines.pop()
+    meta: dict[str, str] = {}
+    key_lines: dict[str, int] = {}
+    h = 0
+    while h < len(lines) and lines[h].startswith("#"):
+        match = _META.match(lines[h])
+        if not match:
+            raise InputFileError(f"metadata line {lines[h]!r} is not of the form '# key: value'",
+                                 path=path, line=h + 1)
+        key, value = match.group(1), match.group(2).strip()
+        if key in meta:
+            raise InputFileError(f"metadata key repeated (first on line {key_lines[key]})",
+                                 path=path, line=h + 1, field=key)
+        meta[key], key_lines[key] = value, h + 1
+        h += 1
+    if h == len(lines):
+        raise InputFileError("no header row; expected a line of column names after the metadata",
+                             path=path, line=h + 1)
+    names = [name.strip() for name in lines[h].split(",")]
+    place = _Place(path, key_lines, h + 1, h + 2)
+    for i, name in enumerate(names):
+        if not name:
+            place.fail(f"column {i + 1} of the header has no name", f"column {i + 1}", header=True)
+        if name in names[:i]:
+            place.fail("duplicated column name; expected each column once", name, header=True)
+    rows = [line.split(",") for line in lines[h + 1:]]
+    for r, cells in enumerate(rows):
+        if len(cells) != len(names):
+            field = names[len(cells)] if len(cells) < len(names) else None
+            place.fail(f"row has {len(cells)} cells; expected {len(names)} ({', '.join(names)})", field, row=r)
+    required = set(REQUIRED_COLUMNS) | ({"reference_m"} if meta.get("loop") == "closed" else set())
+    cols = {}
+    for c, name in enumerate(names):
+        cells = [cells[c] for cells in rows]
+        try:
+            if any("_" in cell for cell in cells):  # float() accepts '1_000'; the format does not
+                raise ValueError
+            cols[name] = np.array(cells, dtype=float)
+        except ValueError:
+            cols[name] = _parse_cells(cells, name, name in required, place)
+    return meta, cols, place
+
+
+def _parse_cells(cells: list[str], name: str, required: bool, place: _Place) -> np.ndarray:
+    values = np.empty(len(cells))
+    for r, cell in enumerate(cells):
+        if not cell.strip():
+            if required:
+                place.fail("empty cell in a required column; expected a number", name, row=r)
+            values[r] = math.nan
+        elif _NUMBER.match(cell):
+            values[r] = float(cell)
+        else:
+            place.fail(f"{cell.strip()!r} is not a number; expected a decimal number with '.'", name, row=r)
+    return values
+
+
+def _parse_mat(path: Path):
+    import scipy.io
+
+    try:
+        raw = scipy.io.loadmat(path, chars_as_strings=True)
+    except NotImplementedError:
+        raise InputFileError("MATLAB v7.3 (HDF5) files are not supported; save with -v7", path=path) from None
+    except Exception as exc:  # scipy raises several types for a damaged file
+        raise InputFileError(f"not a readable MATLAB .mat file ({exc})", path=path) from None
+    place = _Place(path)
+    meta: dict[str, str] = {}
+    cols: dict[str, np.ndarray] = {}
+    for name, value in raw.items():
+        if name.startswith("__"):
+            continue
+        value = np.asarray(value)
+        if value.dtype.kind == "U" and name not in SIGNALS:
+            if value.size > 1:
+                place.fail("expected a one-line char array", name)
+            meta[name] = str(value.reshape(-1)[0]) if value.size else ""
+        elif value.dtype.kind in "biuf" and value.size:
+            if value.ndim > 2 or (value.ndim == 2 and 1 not in value.shape):
+                place.fail(f"expected a column vector, got a {'x'.join(map(str, value.shape))} array", name)
+            flat = value.reshape(-1).astype(float)
+            if name in SIGNALS or flat.size != 1:
+                cols[name] = flat
+            elif not math.isfinite(flat[0]):
+                place.fail(f"expected a finite number, got {flat[0]!r}", name)
+            else:
+                meta[name] = repr(float(flat[0]))
+        else:
+            place.fail(f"expected a numeric column vector or a char array, got MATLAB type {value.dtype}", name)
+    return meta, cols, place
+
+
+# ------------------------------------------------------------------ writing
+def write_recording(recording: Recording, path: str | Path, significant_digits: int | None = None) -> None:
+    """Write a recording as ``.csv`` or ``.mat`` (chosen by the suffix of ``path``).
+
+    Parameters
+    ----------
+    recording:
+        What to write.
+    path:
+        Target file; overwritten.
+    significant_digits:
+        CSV only: digits of every column but ``time_s`` (``None``: full
+        precision, an exact round trip).  ``time_s`` is always written in full.
+        Gaps (NaN) are written as empty cells.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    cols = recording.columns()
+    if suffix == ".csv":
+        lines = [f"# {key}: {value}" for key, value in recording.metadata.items()]
+        lines.append(",".join(cols))
+        fmt = repr if significant_digits is None else (lambda v: f"{v:.{int(significant_digits)}g}")
+        text_cols = [[("" if v != v else (repr(v) if name == "time_s" else fmt(v))) for v in values.tolist()]
+                     for name, values in cols.items()]
+        lines.extend(",".join(row) for row in zip(*text_cols))
+        path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    elif suffix == ".mat":
+        import scipy.io
+
+        for name in cols:
+            if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,62}", name):
+                raise InputFileError("column name is not a valid MATLAB variable name", path=path, field=name)
+        out: dict[str, object] = {k: v for k, v in recording.metadata.items() if k != "sample_time_s"}
+        out["sample_time_s"] = recording.sample_time_s
+        out.update({name: values.reshape(-1, 1) for name, values in cols.items()})
+        scipy.io.savemat(path, out, oned_as="column")
+    else:
+        raise InputFileError(f"unknown file type {path.suffix or '(none)'!r}; expected .csv or .mat", path=path)
+
+
+# ------------------------------------------------------------------ summary
+def summarize(recording: Recording) -> str:
+    """A few lines for people (``pneusim check``): size, timing, rig, loop, columns and gaps."""
+    r = recording
+    t = r.time_s
+    out = [f"recording: {r.source or '(in memory)'}",
+           f"samples: {r.n_samples}, duration {t[-1] - t[0]:.6g} s ({t[0]:.6g} .. {t[-1]:.6g} s), "
+           f"sample time {r.sample_time_s:.6g} s",
+           f"rig: {r.rig or '(not given)'}, loop: {r.loop or '(not given)'}"]
+    if r.controller:
+        out.append("controller: proportional, " + ", ".join(f"{k}={v:g}" for k, v in r.controller.items()))
+    out.append(f"pressures: {'chamber A and B' if r.has_pressures else 'not recorded'}")
+    out.append("columns:")
+    for name, values in r.columns().items():
+        gaps = int(np.isnan(values).sum())
+        line = f"  {name:<16} min {np.nanmin(values):<12.6g} max {np.nanmax(values):<12.6g}" if gaps < len(values) \
+            else f"  {name:<16} (all gaps)"
+        if gaps:
+            line += f" gaps: {gaps} samples ({100.0 * gaps / len(values):.3g} %)"
+        out.append(line.rstrip() + (" (extra)" if name in r.extra else ""))
+    if r.metadata.get("description"):
+        out.append(f"description: {r.metadata['description']}")
+    known = {"format", "sample_time_s", "rig", "loop", "controller", "description", *CONTROLLER_KEYS}
+    other = {k: v for k, v in r.metadata.items() if k not in known}
+    if other:
+        out.append("other metadata: " + ", ".join(f"{k}={v}" for k, v in other.items()))
+    return "\n".join(out)

@@ -1,0 +1,217 @@
+"""Identifiers scored by a scenario, and the metrics they are scored with.
+
+Every identifier returns a list of *rows* (dicts): ``identifier``, ``reading``,
+``status`` (``ok`` or ``not available`` / ``failed`` with ``reason``), metrics
+(``fit_percent``, ``mse`` ...) and, under ``_yhat``, the model output on the
+validation data (dropped before JSON).  Black-box identifiers come from
+:mod:`sysid` (MATLAB-style surface); a function missing there makes the row
+``not available`` instead of stopping the run.
+
+Fit in percent is MATLAB's ``compare`` fit, ``100 (1 - ||y - yhat|| / ||y - mean(y)||)``.
+"""
+
+from __future__ import annotations
+
+import math
+import traceback
+
+import numpy as np
+from scipy import signal as sps
+
+__all__ = ["fit_percent", "error_stats", "run_blackbox", "score_published_z", "score_published_s",
+           "run_physical_fit", "not_available"]
+
+
+def fit_percent(y, yhat) -> float:
+    """``100 (1 - ||y - yhat|| / ||y - mean(y)||)`` over the finite samples [%]."""
+    y, yhat = np.asarray(y, float), np.asarray(yhat, float)
+    ok = np.isfinite(y) & np.isfinite(yhat)
+    y, yhat = y[ok], yhat[ok]
+    den = np.linalg.norm(y - y.mean())
+    return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / den)) if den > 0 else float("nan")
+
+
+def error_stats(y, yhat) -> dict:
+    """Paper 1 Table 1 statistics: min, max, std of actual, predicted and error; mean square error.
+
+    ``square_error`` is the mean of ``(y - yhat)^2`` over the finite samples, in output units squared.
+    """
+    y, yhat = np.asarray(y, float), np.asarray(yhat, float)
+    ok = np.isfinite(y) & np.isfinite(yhat)
+    y, yhat = y[ok], yhat[ok]
+    e = y - yhat
+    out = {"n_scored": int(ok.sum()), "square_error": float(np.mean(e ** 2)), "mse": float(np.mean(e ** 2)),
+           "rmse": float(np.sqrt(np.mean(e ** 2))), "error_std": float(np.std(e)), "fit_percent": fit_percent(y, yhat)}
+    for name, v in (("actual", y), ("predicted", yhat), ("error", e)):
+        out.update({f"{name}_min": float(v.min()), f"{name}_max": float(v.max()), f"{name}_std": float(np.std(v))})
+    return out
+
+
+def not_available(ident: dict, reason: str, status: str = "not available") -> dict:
+    return {"identifier": ident["name"], "kind": ident["kind"], "reading": "", "status": status, "reason": reason}
+
+
+_SYSID_FUN = {"arx": "arx", "armax": "armax", "ss": "n4sid", "tf": "tfest"}
+
+
+def run_blackbox(ident: dict, est: tuple, val: tuple, ts: float) -> list[dict]:
+    """Estimate a :mod:`sysid` model on ``est = (y, u)``, simulate it on ``val = (y, u)``, score it.
+
+    The simulation starts from estimated initial conditions where :func:`sysid.simulate`
+    offers them (MATLAB's ``compare`` default), else from zero.
+    """
+    try:
+        import sysid
+    except ImportError as exc:
+        return [not_available(ident, f"sysid is not importable ({exc})")]
+    fun = _SYSID_FUN[ident["kind"]]
+    missing = [f for f in ("iddata", fun, "simulate") if not hasattr(sysid, f)]
+    if missing:
+        return [not_available(ident, f"sysid has no {', '.join(missing)} yet")]
+    try:
+        d_est = sysid.iddata(est[0], est[1], ts)
+        d_val = sysid.iddata(val[0], val[1], ts)
+        if ident["kind"] in ("arx", "armax"):
+            model = getattr(sysid, fun)(d_est, list(ident["orders"]))
+        elif ident["kind"] == "ss":
+            model = sysid.n4sid(d_est, ident["nx"])
+        else:
+            model = sysid.tfest(d_est, ident["np"], ident["nz"], iodelay=ident.get("iodelay_s"))
+        try:
+            yhat = np.asarray(sysid.simulate(model, d_val, initial="estimate"), float).ravel()
+            init = "estimated"
+        except Exception:  # noqa: BLE001 - an identifier without estimated initial conditions
+            yhat = np.asarray(sysid.simulate(model, d_val), float).ravel()
+            init = "zero"
+        row = {"identifier": ident["name"], "kind": ident["kind"], "reading": f"simulation, {init} initial state",
+               "status": "ok", **error_stats(val[0], yhat), "_yhat": yhat}
+        if hasattr(sysid, "compare"):
+            try:
+                row["fit_percent_sysid_compare"] = float(sysid.compare(d_val, model))
+            except Exception:  # noqa: BLE001
+                pass
+        return [row]
+    except Exception as exc:  # noqa: BLE001 - an identifier failing must not stop the scenario
+        return [not_available(ident, f"{type(exc).__name__}: {exc} "
+                              f"({traceback.extract_tb(exc.__traceback__)[-1].name})", status="failed")]
+
+
+def _published_one_step(num, den, y, u, input_delay):
+    """One-step prediction of ``A(z) y = B(z) u`` with the printed z-polynomials (descending powers).
+
+    ``num`` is padded on the left to the length of ``den``; ``input_delay`` samples shift ``u``.
+    """
+    den = np.asarray(den, float) / den[0]
+    num = np.concatenate((np.zeros(len(den) - len(num)), np.asarray(num, float))) / 1.0
+    n = len(den) - 1
+    us = np.concatenate((np.zeros(input_delay), u))[:len(u)] if input_delay else u
+    yhat = np.full(len(y), np.nan)
+    for j in range(n + input_delay, len(y)):
+        yhat[j] = -den[1:] @ y[j - 1::-1][:n] + num @ us[j::-1][:n + 1] if j >= n else np.nan
+    return yhat
+
+
+def score_published_z(ident: dict, y: np.ndarray, u: np.ndarray, warmup: int = 0) -> list[dict]:
+    """Paper 1 equations 9-11 on our data: one-step prediction and free-run simulation.
+
+    Two readings: *as printed* (the numerator's leading term multiplies ``u(k)``)
+    and *eq. 6* (regressor ``u(k-1) ... u(k-n)``, one sample later).  The free run
+    starts from the first sample (deviation variables).
+    """
+    rows = []
+    num, den = ident["num"], ident["den"]
+    for delay, reading in ((0, "as printed"), (1, "eq. 6 regressor (one-sample delay)")):
+        yhat = _published_one_step(num, den, y, u, delay)
+        yhat[:warmup] = np.nan
+        row = {"identifier": ident["name"], "kind": ident["kind"], "reading": reading, "status": "ok",
+               **error_stats(y, yhat), "_yhat": yhat}
+        nn = np.concatenate((np.zeros(len(den) - len(num) + delay), num))
+        free = y[0] + sps.lfilter(nn, den, u - u[0])
+        row["free_run_fit_percent"] = fit_percent(y, free) if np.all(np.isfinite(free)) else float("nan")
+        row["poles_abs_max"] = float(np.max(np.abs(np.roots(den))))
+        row["dc_gain"] = float(np.sum(num) / np.sum(den)) if abs(np.sum(den)) > 0 else float("inf")
+        rows.append(row)
+    return rows
+
+
+_UNIT_S = {"s": lambda ts: 1.0, "ms": lambda ts: 1e-3, "sample": lambda ts: ts}
+
+
+def score_published_s(ident: dict, val: tuple, ts: float) -> list[dict]:
+    """Paper 2 equation 4 under each time-unit reading, simulated (zero state) on the validation data.
+
+    If ``s`` and the delay are in units of ``T`` seconds, ``G_T(s_T)`` becomes
+    ``G(s T)`` in seconds (coefficient of ``s^i`` times ``T^i``) with a delay of
+    ``delay T`` seconds.  The row records poles in rad/s, the DC gain, the
+    slowest time constant against the record length, and the fit.
+    """
+    y, u = val
+    rows = []
+    record_s = len(y) * ts
+    for unit in ident.get("time_units", ["s"]):
+        T = _UNIT_S[unit](ts)
+        num = np.asarray(ident["num"], float)
+        den = np.asarray(ident["den"], float)
+        num_s = num * T ** np.arange(len(num) - 1, -1, -1)
+        den_s = den * T ** np.arange(len(den) - 1, -1, -1)
+        num_s, den_s = num_s / den_s[0], den_s / den_s[0]
+        delay_s = float(ident.get("delay", 0.0)) * T
+        nd = int(round(delay_s / ts))
+        poles = np.roots(den_s)
+        slowest = float(1.0 / np.min(np.abs(poles.real))) if np.all(poles.real < 0) else float("inf")
+        row = {"identifier": ident["name"], "kind": ident["kind"], "reading": f"time unit = {unit}",
+               "status": "ok", "time_unit_s": T, "delay_s": delay_s, "delay_samples": nd,
+               "dc_gain": float(num_s[-1] / den_s[-1]), "poles_rad_per_s": [str(complex(p)) for p in poles],
+               "slowest_time_constant_s": slowest, "record_s": record_s,
+               "stable": bool(np.all(poles.real < 0))}
+        if nd >= len(y):
+            row.update(status="ok", fit_percent=float("nan"), reason="the delay is longer than the record")
+            rows.append(row)
+            continue
+        bd, ad, _ = sps.cont2discrete((num_s, den_s), ts, method="zoh")
+        ud = np.concatenate((np.zeros(nd), u))[:len(u)]
+        yhat = sps.lfilter(np.ravel(bd), np.ravel(ad), ud)
+        row.update(error_stats(y, yhat))
+        row["_yhat"] = yhat
+        rows.append(row)
+    return rows
+
+
+def run_physical_fit(ident: dict, est_rec, val_rec, rig, effects, to_output, val_y) -> list[dict]:
+    """Fit the physical model (``pneusim.fit.fit_recording``) on the estimation recording,
+    re-run the validation experiment on the fitted rig and score its output."""
+    try:
+        from ..fit import fit_recording
+    except ImportError as exc:
+        return [not_available(ident, f"pneusim.fit.fit_recording is not importable ({exc})")]
+    try:
+        from ..simulate import rerun_recording
+        result = fit_recording(est_rec, rig)
+        estimates = getattr(result, "estimates", None) or getattr(result, "params", None)
+        if estimates is None and isinstance(result, dict):
+            estimates = result.get("estimates")
+        if not isinstance(estimates, dict):
+            return [not_available(ident, f"fit result {type(result).__name__} has no 'estimates' mapping",
+                                  status="failed")]
+        estimates = {k: float(getattr(v, "value", v)) for k, v in estimates.items() if k in rig.params}
+        fitted = rig.with_params(estimates)
+        sim = rerun_recording(fitted, val_rec, effects, noise_scale=0.0)
+        yhat = to_output(sim.recording.position_m)
+        row = {"identifier": ident["name"], "kind": ident["kind"], "reading": "fitted rig, validation re-run",
+               "status": "ok", **error_stats(val_y, yhat), "_yhat": yhat,
+               "estimates": {k: float(v) for k, v in estimates.items()}}
+        return [row]
+    except Exception as exc:  # noqa: BLE001
+        return [not_available(ident, f"{type(exc).__name__}: {exc}", status="failed")]
+
+
+def clean_row(row: dict) -> dict:
+    """The row without private arrays, NaN/inf as None (strict JSON)."""
+    out = {}
+    for k, v in row.items():
+        if k.startswith("_"):
+            continue
+        if isinstance(v, float) and not math.isfinite(v):
+            v = None
+        out[k] = v
+    return out

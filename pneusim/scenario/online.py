@@ -1,0 +1,188 @@
+"""Online identification inside the loop, sample by sample, as the mixed-reality paper did.
+
+:class:`PaperRLS` is the recursive least squares of paper 1, equation 8, on the
+ARMA structure of its equations 3-6::
+
+    psi(k)  = [-y(k-1) ... -y(k-n), u(k-1) ... u(k-n)]          (eq. 6)
+    yhat(k) = psi(k)' theta(k-1)                                  (eq. 5)
+    theta(k) = theta(k-1) + P psi (y(k) - yhat(k)) / (lambda + psi' P psi)
+    P(k)    = (P - P psi psi' P / (lambda + psi' P psi)) / lambda  (eq. 8)
+
+with ``P(0) = c I`` and ``theta(0) = 0``.  ``theta`` is ``[a1..an, b1..bn]``.
+
+:func:`simulate_online` steps a :class:`~pneusim.plant.SimulatedPlant` and, at
+every sample, first lets each estimator predict and update on the new
+measurement, then lets the controller act: the estimators run inside the loop
+on exactly the data the loop produces, never on a stored record.  A ``h``-step
+prediction ``yhat(k | k-h)`` uses ``theta(k-h)``, the measured outputs up to
+``k-h`` and the applied inputs up to ``k-1``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .. import __version__
+from ..experiment import Experiment
+from ..plant import SimulatedPlant
+from ..recording import Recording
+from ..rig import Rig
+
+__all__ = ["PaperRLS", "simulate_online", "OnlineResult"]
+
+
+class PaperRLS:
+    """Recursive ARMA estimator of paper 1 (eq. 8) with h-step predictions.
+
+    Parameters
+    ----------
+    order : int
+        ``n = na = nb``.
+    forgetting : float
+        Forgetting factor lambda in (0, 1].
+    initial_covariance : float
+        ``c`` of ``P(0) = c I``.
+    horizons : sequence of int
+        Prediction steps to produce at every sample (1 = one-step prediction).
+    """
+
+    def __init__(self, order: int, forgetting: float = 0.99, initial_covariance: float = 1000.0,
+                 horizons: Sequence[int] = (1,)):
+        self.order, self.forgetting, self.c = int(order), float(forgetting), float(initial_covariance)
+        self.horizons = tuple(int(h) for h in horizons)
+        n = self.order
+        self.theta = np.zeros(2 * n)
+        self.P = self.c * np.eye(2 * n)
+        self._y = deque([0.0] * (n + max(self.horizons)), maxlen=n + max(self.horizons))  # newest last
+        self._u = deque([0.0] * (n + max(self.horizons)), maxlen=n + max(self.horizons))
+        self._thetas = deque(maxlen=max(self.horizons))    # theta(k-1), theta(k-2), ... newest last
+        self.k = 0
+
+    def _psi(self) -> np.ndarray:
+        n = self.order
+        ys, us = list(self._y)[-n:][::-1], list(self._u)[-n:][::-1]
+        return np.concatenate((-np.asarray(ys), np.asarray(us)))
+
+    def update(self, y: float) -> dict[int, float]:
+        """Take the measurement ``y(k)``; return ``{h: yhat(k | k-h)}`` (NaN until enough history)."""
+        preds = self.predictions()
+        psi = self._psi()
+        Ppsi = self.P @ psi
+        denom = self.forgetting + psi @ Ppsi
+        self.theta = self.theta + Ppsi * ((y - psi @ self.theta) / denom)
+        self.P = (self.P - np.outer(Ppsi, Ppsi) / denom) / self.forgetting
+        self._y.append(float(y))
+        self._thetas.append(self.theta.copy())
+        self.k += 1
+        return preds
+
+    def add_input(self, u: float) -> None:
+        """Record the input ``u(k)`` applied after the measurement ``y(k)``."""
+        self._u.append(float(u))
+
+    def predictions(self) -> dict[int, float]:
+        """``yhat(k | k-h)`` for every horizon, before ``y(k)`` is taken (inputs up to ``k-1`` known)."""
+        n, out = self.order, {}
+        ys, us = np.asarray(self._y), np.asarray(self._u)      # index -1 is y(k-1), u(k-1)
+        for h in self.horizons:
+            if h > len(self._thetas) or self.k < n + h:
+                out[h] = float("nan")
+                continue
+            theta = self._thetas[-h]                            # theta(k-h)
+            a, b = theta[:n], theta[n:]
+            hist = list(ys[len(ys) - h - n + 1:len(ys) - h + 1]) if h > 0 else []
+            # hist holds y(k-h-n+1) .. y(k-h), oldest first
+            for j in range(1, h + 1):
+                # predict y(k-h+j) from the last n values of hist and u(k-h+j-1) .. u(k-h+j-n)
+                past_y = np.asarray(hist[-n:][::-1])
+                idx_u = len(us) - h + j - 1                     # index of u(k-h+j-1)
+                past_u = us[idx_u - n + 1:idx_u + 1][::-1]
+                hist.append(float(-a @ past_y + b @ past_u))
+            out[h] = hist[-1]
+        return out
+
+
+@dataclass
+class OnlineResult:
+    """What :func:`simulate_online` returns.
+
+    Attributes
+    ----------
+    recording : Recording
+    predictions : dict
+        ``{(estimator name, h): ndarray (N,)}``, output units, NaN where undefined.
+    thetas : dict
+        ``{estimator name: ndarray (N, 2n)}``, theta after each sample.
+    wall_time_s : float
+    """
+
+    recording: Recording
+    predictions: dict = field(default_factory=dict)
+    thetas: dict = field(default_factory=dict)
+    wall_time_s: float = 0.0
+
+
+def simulate_online(rig: Rig, experiment: Experiment, estimators: dict[str, PaperRLS],
+                    to_output: Callable[[float], float], to_input: Callable[[float, int], float],
+                    effects=(), *, seed: int = 0, noise_scale: float = 1.0, progress: bool = False) -> OnlineResult:
+    """Run ``experiment`` with the estimators inside the loop.
+
+    Parameters
+    ----------
+    estimators : {name: PaperRLS}
+    to_output : callable(position_m) -> y
+        Measured position (m) to the estimators' output unit.
+    to_input : callable(command_V, k) -> u
+        Applied command (V) and sample index to the estimators' input.
+    """
+    if experiment.sample_time_s != rig.sample_time_s:
+        rig = rig.with_params({"sample_time_s": experiment.sample_time_s})
+    plant = SimulatedPlant(rig, effects, seed=seed, noise_scale=noise_scale)
+    ts, n, closed = experiment.sample_time_s, experiment.n_samples, experiment.loop == "closed"
+    ctrl = experiment.controller
+    first = experiment.signal[0]
+    x0 = experiment.initial_position_m
+    if x0 is None:
+        x0 = float(np.clip(first, 0.0, rig.stroke_m)) if closed else 0.5 * rig.stroke_m
+    n_warm = int(round(experiment.warmup_s / ts))
+    plant.reset(x0, ctrl.command(-n_warm * ts, first, x0) if closed else first, t0_s=-n_warm * ts)
+    pos, cmd = np.empty(n), np.empty(n)
+    pa, pb = np.empty(n), np.empty(n)
+    preds = {(name, h): np.full(n, np.nan) for name, est in estimators.items() for h in est.horizons}
+    thetas = {name: np.empty((n, est.theta.size)) for name, est in estimators.items()}
+    steps = range(-n_warm, n)
+    if progress:
+        from tqdm import tqdm
+        steps = tqdm(steps, desc="online run", unit="sample", leave=False, mininterval=0.5)
+    started = time.perf_counter()
+    for k in steps:
+        m = plant.measure()
+        ref = experiment.signal[max(k, 0)]
+        u = ctrl.command(m.t_s, ref, m.position_m) if closed else ref
+        if k >= 0:
+            y = to_output(m.position_m)
+            for name, est in estimators.items():
+                for h, v in est.update(y).items():
+                    preds[(name, h)][k] = v
+                thetas[name][k] = est.theta
+                est.add_input(to_input(u, k))
+            pos[k], cmd[k], pa[k], pb[k] = m.position_m, u, m.pressure_a_Pa, m.pressure_b_Pa
+            if k == n - 1:
+                break
+        plant.step(u)
+    wall = time.perf_counter() - started
+    meta = {"format": "pneusim-recording/1", "sample_time_s": repr(ts), "rig": rig.name, "loop": experiment.loop,
+            "description": experiment.description or "online identification run",
+            "generator": f"pneusim {__version__}", "seed": str(seed),
+            "effects": ";".join(repr(e) for e in plant.model.effects) or "none"}
+    if closed:
+        meta.update(ctrl.metadata())
+    rec = Recording(time_s=np.arange(n) * ts, valve_cmd_V=cmd, position_m=pos,
+                    reference_m=experiment.signal.copy() if closed else None,
+                    pressure_a_Pa=pa, pressure_b_Pa=pb, metadata=meta)
+    return OnlineResult(rec, preds, thetas, wall)

@@ -1,0 +1,158 @@
+"""Run a validated scenario: simulate, identify, score; return a result (no files written).
+
+:func:`run_scenario` is pure apart from the optional progress bar: a sweep calls
+it in worker processes, ``pneusim run`` calls it and then
+:func:`pneusim.scenario.report.write_report`.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..model import parse_effect_text
+from ..rig import load_rig
+from ..simulate import simulate
+from . import identify as idf
+from .online import PaperRLS, simulate_online
+from .signals import build_experiment, input_signal, output_signal, sensor_gain
+
+__all__ = ["ScenarioResult", "run_scenario", "end_stop_summary"]
+
+
+@dataclass
+class ScenarioResult:
+    """Everything a report needs.
+
+    Attributes
+    ----------
+    spec : dict
+        The validated scenario.
+    rows : list of dict
+        One per identifier and reading (metrics; private ``_yhat`` arrays kept for figures).
+    recording : Recording
+        The main simulated run.
+    y, u : ndarray, shape (N,)
+        The identifiers' output and input (units of ``spec['data']``).
+    n_estimation : int
+        Samples used for estimation (the rest validate).
+    variants : list of dict
+        ``{"name", "description", "recording", "summary"}`` for each extra run.
+    timings_s : dict
+    """
+
+    spec: dict
+    rows: list
+    recording: object
+    y: np.ndarray
+    u: np.ndarray
+    n_estimation: int
+    thetas: dict = field(default_factory=dict)
+    variants: list = field(default_factory=list)
+    timings_s: dict = field(default_factory=dict)
+    rig_name: str = ""
+
+
+def end_stop_summary(position_m: np.ndarray, stroke_m: float, sample_time_s: float, margin_m: float = 1e-3) -> dict:
+    """Where the piston went: range, fraction of samples within ``margin_m`` of an end stop, first contact [s]."""
+    at_stop = (position_m <= margin_m) | (position_m >= stroke_m - margin_m)
+    first = int(np.argmax(at_stop)) if at_stop.any() else None
+    return {"position_min_m": float(position_m.min()), "position_max_m": float(position_m.max()),
+            "fraction_at_end_stop": float(at_stop.mean()),
+            "first_end_stop_s": None if first is None else first * sample_time_s,
+            "stroke_m": stroke_m}
+
+
+def run_scenario(spec: dict, progress: bool = False, variants: bool = True) -> ScenarioResult:
+    """Simulate the scenario's experiment with its online identifiers in the loop, then score all identifiers.
+
+    Parameters
+    ----------
+    spec : dict
+        A scenario validated by :func:`~pneusim.scenario.schema.validate_scenario`.
+    progress : bool
+        tqdm progress bars on the simulations.
+    variants : bool
+        Also run the ``[[variants]]`` (extra experiments reported beside the main one).
+    """
+    timings = {}
+    started = time.perf_counter()
+    rig = load_rig(spec["rig"]["name"])
+    if spec["rig"]["overrides"]:
+        rig = rig.with_params(spec["rig"]["overrides"])
+    effects = [parse_effect_text(e) for e in spec["rig"]["effects"]]
+    exp_spec, data = spec["experiment"], spec["data"]
+    experiment, raw = build_experiment(rig, exp_spec)
+    if experiment.sample_time_s != rig.sample_time_s:
+        rig = rig.with_params({"sample_time_s": experiment.sample_time_s})
+    idents = [i for i in spec["identifiers"] if i.get("enabled", True)]
+    online = {i["name"]: PaperRLS(i["order"], i["forgetting"], i["initial_covariance"], i["horizons"])
+              for i in idents if i["kind"] == "rls"}
+    seed, noise = int(exp_spec["seed"]), float(exp_spec["noise_scale"])
+    t0 = time.perf_counter()
+    gain = sensor_gain(rig)
+    scale = {"m": 1.0, "cm": 100.0, "mm": 1000.0, "sensor_V": gain}[data["output_unit"]]
+    y_off, u_off = float(data["output_offset"]), float(data["input_offset"])
+    if online:
+        use_signal = data["input"] == "signal"
+        res = simulate_online(rig, experiment, online, lambda p: p * scale - y_off,
+                              lambda u, k: (raw[k] if use_signal else u) - u_off, effects,
+                              seed=seed, noise_scale=noise, progress=progress)
+        rec, preds, thetas = res.recording, res.predictions, res.thetas
+    else:
+        sim = simulate(rig, experiment, effects, seed=seed, noise_scale=noise, progress=progress)
+        rec, preds, thetas = sim.recording, {}, {}
+    timings["simulation_s"] = time.perf_counter() - t0
+    y = output_signal(rec.position_m, rig, data)
+    u = input_signal(rec.valve_cmd_V, raw, data)
+    n = len(y)
+    n_est = int(round(data["estimation_fraction"] * n))
+    ts = experiment.sample_time_s
+    est, val = (y[:n_est], u[:n_est]), (y[n_est:], u[n_est:])
+    rows = []
+    for ident in idents:
+        t1 = time.perf_counter()
+        kind = ident["kind"]
+        if kind == "rls":
+            new = []
+            for h in ident["horizons"]:
+                yhat = preds[(ident["name"], h)]
+                th = thetas[ident["name"]][-1]
+                new.append({"identifier": ident["name"], "kind": kind, "reading": f"online, {h}-step prediction",
+                            "horizon": h, "order": ident["order"], "forgetting": ident["forgetting"],
+                            "status": "ok", **idf.error_stats(y, yhat), "_yhat": yhat,
+                            "theta_final": [float(v) for v in th]})
+        elif kind == "published_z":
+            new = idf.score_published_z(ident, y, u)
+        elif kind == "published_s":
+            new = idf.score_published_s(ident, val, ts)
+        elif kind == "physical_fit":
+            t_split = n_est * ts
+            new = idf.run_physical_fit(ident, rec.slice(None, t_split - ts / 2), rec.slice(t_split - ts / 2, None),
+                                       rig, effects, lambda p: output_signal(p, rig, data), val[0])
+        else:
+            new = idf.run_blackbox(ident, est, val, ts)
+        dt = time.perf_counter() - t1
+        for r in new:
+            r["wall_time_s"] = dt + (timings["simulation_s"] if kind == "rls" else 0.0)
+            r.setdefault("scored_on", "whole online run" if kind in ("rls", "published_z") else "validation half")
+        rows.extend(new)
+    result = ScenarioResult(spec, rows, rec, y, u, n_est, thetas=thetas, rig_name=rig.name)
+    if variants:
+        for var in spec.get("variants", []):
+            t1 = time.perf_counter()
+            vexp = copy.deepcopy(exp_spec)
+            vexp.update(var.get("experiment", {}))
+            vexperiment, _ = build_experiment(rig, vexp)
+            vsim = simulate(rig, vexperiment, effects, seed=int(vexp["seed"]), noise_scale=float(vexp["noise_scale"]),
+                            progress=progress)
+            summary = end_stop_summary(vsim.recording.position_m, rig.stroke_m, vexperiment.sample_time_s)
+            summary.update(loop=vexp["loop"], wall_time_s=time.perf_counter() - t1)
+            result.variants.append({"name": var["name"], "description": var.get("description", ""),
+                                    "recording": vsim.recording, "summary": summary})
+    result.timings_s = {**timings, "total_s": time.perf_counter() - started}
+    result.timings_s["main_run_end_stops"] = end_stop_summary(rec.position_m, rig.stroke_m, ts)
+    return result

@@ -1,0 +1,52 @@
+"""Sensors: what the data acquisition adds to the true signals (noise, converter steps).
+
+Position: Gaussian noise, then an ``n``-bit converter over ``0 .. stroke`` whose
+codes saturate at the ends.  Pressures: Gaussian noise, then rounding to the
+converter's step.  All draws come from one seeded generator, so a run is
+reproducible from its seed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .rig import Rig
+
+__all__ = ["Sensors"]
+
+
+class Sensors:
+    """Noise and quantisation of a rig's sensors.
+
+    Parameters
+    ----------
+    rig : Rig
+        Supplies ``position_noise_std_m``, ``position_adc_bits``, ``pressure_noise_std_Pa``,
+        ``pressure_quantum_Pa`` and ``stroke_m``.
+    seed : int
+        Seed of the noise generator.
+    noise_scale : float
+        Multiplies both noise levels (0 gives ideal sensors, still quantised).
+    """
+
+    def __init__(self, rig: Rig, seed: int = 0, noise_scale: float = 1.0):
+        self.stroke_m = rig.stroke_m
+        self.position_std_m = rig.params["position_noise_std_m"] * noise_scale
+        bits = int(rig.params["position_adc_bits"])
+        self.position_quantum_m = self.stroke_m / (2**bits - 1) if bits > 0 else 0.0
+        self.pressure_std_Pa = rig.params["pressure_noise_std_Pa"] * noise_scale
+        self.pressure_quantum_Pa = rig.params["pressure_quantum_Pa"]
+        self.rng = np.random.default_rng(seed)
+
+    def position(self, true_m: float) -> float:
+        y = true_m + (self.rng.normal(0.0, self.position_std_m) if self.position_std_m > 0 else 0.0)
+        if self.position_quantum_m > 0:
+            y = min(max(y, 0.0), self.stroke_m)
+            y = round(y / self.position_quantum_m) * self.position_quantum_m
+        return y
+
+    def pressure(self, true_Pa: float) -> float:
+        y = true_Pa + (self.rng.normal(0.0, self.pressure_std_Pa) if self.pressure_std_Pa > 0 else 0.0)
+        if self.pressure_quantum_Pa > 0:
+            y = round(y / self.pressure_quantum_Pa) * self.pressure_quantum_Pa
+        return y

@@ -1,0 +1,171 @@
+"""ODE backends that integrate the model between sample instants with the input held.
+
+* :class:`CvodeBackend` — SUNDIALS CVODE (BDF, Newton, dense direct solver with
+  the exact CasADi Jacobian) through ``scikits.odes``; right-hand side and
+  Jacobian are compiled C called from CVODE without Python in between.
+* :class:`ScipyBackend` — SciPy's ``solve_ivp`` (Radau, BDF or LSODA) with the
+  same CasADi functions, restarted at every input change: the reference for
+  cross-checks and the peer in benchmarks.
+
+Both have the same small interface: ``reset(t0, x0)``, ``advance(t_stop, u)``
+returning the state at ``t_stop``, and ``stats``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import SolverError
+from ..model import ActuatorModel
+
+__all__ = ["CvodeBackend", "ScipyBackend", "make_backend", "BACKENDS", "state_scales"]
+
+
+def state_scales(model: ActuatorModel, stroke_m: float) -> np.ndarray:
+    """Typical magnitude of each state, for absolute tolerances."""
+    scale = {"position_m": stroke_m, "velocity_m_per_s": 1.0, "pressure_a_Pa": 1e5, "pressure_b_Pa": 1e5,
+             "spool_opening": 1.0, "spool_rate_per_s": 100.0, "temperature_a_K": 300.0,
+             "temperature_b_K": 300.0, "supply_pressure_Pa": 1e5}
+    return np.array([scale.get(s, 1.0) for s in model.state_names])
+
+
+class _Backend:
+    name = ""
+
+    def __init__(self, model: ActuatorModel, params: np.ndarray, *, rtol: float = 1e-6,
+                 atol: np.ndarray | None = None, stroke_m: float = 0.3):
+        self.model = model
+        self.params = np.ascontiguousarray(params, dtype=float)
+        self.rtol = float(rtol)
+        self.atol = rtol * state_scales(model, stroke_m) if atol is None else np.asarray(atol, float)
+        self.t = 0.0
+        self.x = None
+
+    def _fail(self, message: str, t: float, x: np.ndarray):
+        state = ", ".join(f"{n}={v:.6g}" for n, v in zip(self.model.state_names, x))
+        raise SolverError(f"{self.name} failed at t = {t:.6f} s ({message}); state: {state}")
+
+
+class CvodeBackend(_Backend):
+    """CVODE through scikits.odes with compiled right-hand side and Jacobian."""
+
+    name = "cvode"
+
+    def __init__(self, model, params, *, rtol=1e-6, atol=None, stroke_m=0.3, max_steps=50000):
+        super().__init__(model, params, rtol=rtol, atol=atol, stroke_m=stroke_m)
+        from scikits.odes import ode
+        from . import _cvode_compiled as fast
+        from .codegen import compile_functions
+
+        compiled = compile_functions([model.rhs, model.jac], prefix=_prefix(model))
+        self._fast = fast
+        self._u = np.zeros(1)
+        n = len(model.state_names)
+        rhs_c, jac_c = compiled[model.rhs.name()], compiled[model.jac.name()]
+        rhs_kernel = fast.CasadiKernel(rhs_c.address, rhs_c.n_iw, rhs_c.n_w, self._u, self.params)
+        jac_kernel = fast.CasadiKernel(jac_c.address, jac_c.n_iw, jac_c.n_w, self._u, self.params)
+        self._keep = (compiled, rhs_kernel, jac_kernel)  # the solver holds raw pointers into these
+        self._ode = ode("cvode", fast.CompiledRhs(rhs_kernel), jacfn=fast.CompiledJac(jac_kernel, n),
+                           old_api=False, lmm_type="BDF", nonlinsolver="newton", linsolver="dense",
+                           rtol=self.rtol, atol=self.atol, max_steps=max_steps, validate_flags=False)
+        self._solver = self._ode._integrator  # the Cython CVODE object whose C memory `advance` drives
+        self._y = np.zeros(n)
+        self._initialized = False
+
+    def set_params(self, params: np.ndarray):
+        self.params[:] = params
+
+    def reset(self, t0: float, x0: np.ndarray):
+        self.t = float(t0)
+        self.x = np.array(x0, dtype=float)
+        if not self._initialized:
+            self._solver.init_step(self.t, self.x)
+            self._initialized = True
+        else:
+            self._fast.reinit(self._solver, self.t, np.ascontiguousarray(self.x))
+        self._totals = {}
+
+    def advance(self, t_stop: float, u: float) -> np.ndarray:
+        if u != self._u[0]:
+            # The input jumps: restart the BDF history so that no step straddles the jump
+            # with a predictor built on the old input (which fails with stiff spool dynamics).
+            self._bank_stats()
+            self._fast.reinit(self._solver, self.t, self.x)
+            self._u[0] = u
+        flag, t_reached = self._fast.advance(self._solver, t_stop, self._y)
+        if flag < 0:
+            self._fail(f"CVODE flag {flag}", t_reached, self._y)
+        self.t = t_stop
+        self.x = self._y.copy()
+        return self.x
+
+    def _bank_stats(self):
+        # CVodeReInit zeroes CVODE's counters; keep the run's totals here
+        for key, value in self._fast.statistics(self._solver).items():
+            self._totals[key] = self._totals.get(key, 0) + value
+
+    @property
+    def stats(self) -> dict:
+        if not self._initialized:
+            return {}
+        current = self._fast.statistics(self._solver)
+        return {k: self._totals.get(k, 0) + v for k, v in current.items()}
+
+
+class ScipyBackend(_Backend):
+    """SciPy ``solve_ivp`` on the same CasADi functions (evaluated from Python)."""
+
+    def __init__(self, model, params, *, method="Radau", rtol=1e-6, atol=None, stroke_m=0.3):
+        super().__init__(model, params, rtol=rtol, atol=atol, stroke_m=stroke_m)
+        self.method = method
+        self.name = f"scipy-{method}"
+        self.n_rhs = 0
+
+    def set_params(self, params):
+        self.params[:] = params
+
+    def reset(self, t0, x0):
+        self.t = float(t0)
+        self.x = np.array(x0, dtype=float)
+
+    def advance(self, t_stop, u):
+        from scipy.integrate import solve_ivp
+
+        rhs, jac, p = self.model.rhs, self.model.jac, self.params
+
+        def f(t, x):
+            self.n_rhs += 1
+            return np.asarray(rhs(x, u, p)).ravel()
+
+        def j(t, x):
+            return np.asarray(jac(x, u, p))
+
+        kwargs = {"jac": j} if self.method in ("Radau", "BDF", "LSODA") else {}
+        sol = solve_ivp(f, (self.t, t_stop), self.x, method=self.method, rtol=self.rtol, atol=self.atol, **kwargs)
+        if not sol.success:
+            self._fail(sol.message, float(sol.t[-1]), sol.y[:, -1])
+        self.t = t_stop
+        self.x = sol.y[:, -1].copy()
+        return self.x
+
+    @property
+    def stats(self):
+        return {"rhs_evaluations": self.n_rhs}
+
+
+BACKENDS = ("cvode", "scipy-radau", "scipy-bdf", "scipy-lsoda")
+
+
+def make_backend(name: str, model: ActuatorModel, params: np.ndarray, **options):
+    """Backend by name: ``cvode`` (default), ``scipy-radau``, ``scipy-bdf``, ``scipy-lsoda``."""
+    if name == "cvode":
+        return CvodeBackend(model, params, **options)
+    if name.startswith("scipy-"):
+        method = {"radau": "Radau", "bdf": "BDF", "lsoda": "LSODA"}.get(name[6:])
+        if method:
+            return ScipyBackend(model, params, method=method, **options)
+    raise ValueError(f"unknown solver backend {name!r}; expected one of {', '.join(BACKENDS)}")
+
+
+def _prefix(model: ActuatorModel) -> str:
+    return "pneusim_" + "_".join(e.name for e in model.effects) if model.effects else "pneusim_nominal"

@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Set up pneusim on a fresh Debian/Ubuntu machine: system packages, .venv, the
+# package and its dependencies. Idempotent: a second run only checks and exits.
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$here"
+
+need_apt=()
+for pkg in libsundials-dev python3-venv python3-dev gcc g++ pkg-config; do
+  dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || need_apt+=("$pkg")
+done
+if [ ${#need_apt[@]} -gt 0 ]; then
+  sudo_cmd=""
+  [ "$(id -u)" -ne 0 ] && sudo_cmd="sudo"
+  echo "setup: installing system packages: ${need_apt[*]}"
+  $sudo_cmd apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq "${need_apt[@]}" >/dev/null
+fi
+
+python="${PYTHON:-python3}"
+if [ ! -x .venv/bin/python ]; then
+  echo "setup: creating .venv"
+  "$python" -m venv .venv
+fi
+stamp=.venv/.pneusim-installed
+# reinstall when the packaging or the compiled extension changed
+want="$(cat pyproject.toml setup.py pneusim/solver/_cvode_compiled.pyx | sha256sum | cut -d' ' -f1)"
+if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
+  echo "setup: installing pneusim and its dependencies into .venv"
+  .venv/bin/python -m pip install -q --upgrade pip wheel setuptools
+  # scikits.odes 2.7.x builds its Cython extension against Debian's SUNDIALS 6.
+  SUNDIALS_INST=/usr .venv/bin/python -m pip install -q "scikits.odes>=2.7,<2.8"
+  # our own extension cimports scikits.odes' declarations, so it builds without isolation
+  .venv/bin/python -m pip install -q "cython>=3" "setuptools>=68" numpy
+  .venv/bin/python -m pip install -q --no-build-isolation -e ".[test]"
+  echo "$want" > "$stamp"
+fi
+.venv/bin/python -c "import pneusim, sysid, scikits.odes.ode" || { echo "setup: import check failed" >&2; exit 1; }
+echo "setup: ready (.venv)"

@@ -1,0 +1,51 @@
+"""Build the one compiled helper: CVODE callbacks that call CasADi-generated C code.
+
+scikits.odes ships its Cython declarations (.pxd) but not the small
+``sundials_config.pxi`` they include; it is regenerated here from the installed
+SUNDIALS headers so that our extension is compiled against the same types.
+"""
+
+import os
+import re
+from pathlib import Path
+
+import numpy
+from setuptools import Extension, setup
+
+HERE = Path(__file__).parent
+BUILD_INCLUDE = HERE / "build" / "pxi"
+
+
+def sundials_config_pxi() -> Path:
+    include = Path(os.environ.get("SUNDIALS_INCLUDEDIR", "/usr/include"))
+    header = (include / "sundials" / "sundials_config.h").read_text()
+    float_type = "double"
+    for name, kind in (("SUNDIALS_SINGLE_PRECISION", "single"), ("SUNDIALS_EXTENDED_PRECISION", "extended")):
+        if re.search(rf"^#define {name}\b", header, re.M):
+            float_type = kind
+    index = '"int32"' if re.search(r"^#define SUNDIALS_INT32_T\b", header, re.M) else '"64"'
+    BUILD_INCLUDE.mkdir(parents=True, exist_ok=True)
+    pxi = BUILD_INCLUDE / "sundials_config.pxi"
+    pxi.write_text(f'DEF SUNDIALS_FLOAT_TYPE = "{float_type}"\nDEF SUNDIALS_INDEX_SIZE = {index}\n'
+                   'DEF SUNDIALS_BLAS_LAPACK = False\n')
+    return BUILD_INCLUDE
+
+
+def extensions():
+    from Cython.Build import cythonize
+    import scikits.odes
+
+    # the folder holding the scikits namespace, so that relative cimports resolve
+    odes_root = Path(scikits.odes.__file__).resolve().parents[2]
+    ext = Extension(
+        "pneusim.solver._cvode_compiled",
+        ["pneusim/solver/_cvode_compiled.pyx"],
+        include_dirs=[numpy.get_include(), os.environ.get("SUNDIALS_INCLUDEDIR", "/usr/include")],
+        libraries=["sundials_cvode", "sundials_nvecserial"],
+        define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
+    )
+    return cythonize([ext], include_path=[str(sundials_config_pxi()), str(odes_root)],
+                     compiler_directives={"language_level": 3}, quiet=True)
+
+
+setup(ext_modules=extensions())

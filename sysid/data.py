@@ -1,0 +1,220 @@
+"""Input-output data container in the spirit of MATLAB's ``iddata``.
+
+Only single-input single-output records are supported.  Signals are stored as
+1-D float arrays of equal length ``N``; the sample time ``Ts`` is in seconds.
+"""
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from .errors import SysidError
+
+__all__ = ["IDData", "iddata", "detrend", "load_recording"]
+
+
+def _as_signal(x, name: str) -> np.ndarray:
+    try:
+        a = np.asarray(x, dtype=float)
+    except (TypeError, ValueError):
+        raise SysidError(f"{name} must be a numeric 1-D array.") from None
+    if a.ndim == 2 and 1 in a.shape:
+        a = a.reshape(-1)
+    if a.ndim != 1:
+        raise SysidError(f"{name} must be a 1-D array (single channel), got shape {a.shape}.")
+    if not np.all(np.isfinite(a)):
+        i = int(np.flatnonzero(~np.isfinite(a))[0])
+        raise SysidError(f"{name} must be finite, but sample {i} is {a[i]}.")
+    return a
+
+
+@dataclass(frozen=True)
+class IDData:
+    """Sampled single-input single-output data.
+
+    Parameters
+    ----------
+    y : ndarray, shape (N,)
+        Output samples, in ``output_unit``.
+    u : ndarray, shape (N,)
+        Input samples, in ``input_unit`` (held constant between samples).
+    Ts : float
+        Sample time in seconds, > 0.
+    output_name, input_name, output_unit, input_unit : str
+        Signal names and units (metadata only).
+    tstart : float
+        Time of the first sample in seconds.
+    """
+
+    y: np.ndarray
+    u: np.ndarray
+    Ts: float
+    output_name: str = "y"
+    input_name: str = "u"
+    output_unit: str = ""
+    input_unit: str = ""
+    tstart: float = 0.0
+    metadata: dict = field(default_factory=dict, compare=False)
+
+    def __post_init__(self):
+        y = _as_signal(self.y, "y")
+        u = _as_signal(self.u, "u")
+        if y.shape != u.shape:
+            raise SysidError(
+                f"y and u must have the same length, got {y.size} output and {u.size} input samples.")
+        try:
+            ts = float(self.Ts)
+        except (TypeError, ValueError):
+            raise SysidError(f"Ts must be a positive number of seconds, got {self.Ts!r}.") from None
+        if not (np.isfinite(ts) and ts > 0):
+            raise SysidError(f"Ts must be a positive number of seconds, got {self.Ts!r}.")
+        if y.size < 2:
+            raise SysidError(f"y and u must hold at least 2 samples, got {y.size}.")
+        y.setflags(write=False)
+        u.setflags(write=False)
+        object.__setattr__(self, "y", y)
+        object.__setattr__(self, "u", u)
+        object.__setattr__(self, "Ts", ts)
+
+    def __len__(self) -> int:
+        return self.y.size
+
+    @property
+    def N(self) -> int:
+        """Number of samples."""
+        return self.y.size
+
+    @property
+    def time(self) -> np.ndarray:
+        """Sample instants in seconds, shape (N,)."""
+        return self.tstart + self.Ts * np.arange(self.N)
+
+    def __getitem__(self, index) -> "IDData":
+        """Slice samples, e.g. ``data[:300]`` (estimation) and ``data[300:]`` (validation)."""
+        if not isinstance(index, slice):
+            raise SysidError("IDData index must be a slice of samples such as data[:300].")
+        start, stop, step = index.indices(self.N)
+        if step != 1:
+            return replace(self, y=self.y[index], u=self.u[index], Ts=self.Ts * step,
+                           tstart=self.tstart + start * self.Ts)
+        return replace(self, y=self.y[index], u=self.u[index], tstart=self.tstart + start * self.Ts)
+
+    def split(self, n_estimation: int) -> tuple["IDData", "IDData"]:
+        """Split into an estimation part (first ``n_estimation`` samples) and a validation part."""
+        if not (2 <= int(n_estimation) <= self.N - 2):
+            raise SysidError(f"n_estimation must be between 2 and N-2 = {self.N - 2}, got {n_estimation}.")
+        n = int(n_estimation)
+        return self[:n], self[n:]
+
+    def detrend(self, order: int = 0) -> "IDData":
+        """Return a copy with the mean (``order=0``) or linear trend (``order=1``) removed."""
+        return detrend(self, order)
+
+
+def iddata(y, u, Ts, **kwargs) -> IDData:
+    """Create an :class:`IDData` like MATLAB's ``iddata(y, u, Ts)``.
+
+    Parameters
+    ----------
+    y : array_like, shape (N,)
+        Output samples.
+    u : array_like, shape (N,)
+        Input samples.
+    Ts : float
+        Sample time in seconds.
+    **kwargs
+        ``output_name``, ``input_name``, ``output_unit``, ``input_unit``, ``tstart``.
+    """
+    return IDData(y, u, Ts, **kwargs)
+
+
+def detrend(data: IDData, order: int = 0) -> IDData:
+    """Remove the mean (``order=0``) or a straight line (``order=1``) from y and u.
+
+    Parameters
+    ----------
+    data : IDData
+    order : {0, 1}
+
+    Returns
+    -------
+    IDData
+        Detrended copy; the removed offsets are not stored.
+    """
+    if order not in (0, 1):
+        raise SysidError(f"order must be 0 (mean) or 1 (linear trend), got {order!r}.")
+    from scipy.signal import detrend as _dt
+    kind = "constant" if order == 0 else "linear"
+    return replace(data, y=_dt(data.y, type=kind), u=_dt(data.u, type=kind))
+
+
+def load_recording(path, output: str = "position_m", input: str = "valve_cmd_V") -> IDData:
+    """Load a ``pneusim-recording/1`` CSV file as :class:`IDData`.
+
+    Parameters
+    ----------
+    path : str or Path
+        CSV with ``# key: value`` metadata lines, one header row, numeric rows.
+    output, input : str
+        Column names used as output (default ``position_m``, m) and input
+        (default ``valve_cmd_V``, V).
+
+    Returns
+    -------
+    IDData
+        ``Ts`` from ``# sample_time_s:``; the other metadata in ``metadata``.
+    """
+    path = Path(path)
+    meta: dict[str, str] = {}
+    rows: list[list[str]] = []
+    header = None
+    with path.open(newline="", encoding="utf-8") as fh:
+        for lineno, line in enumerate(fh, start=1):
+            s = line.strip()
+            if not s:
+                continue
+            if header is None and s.startswith("#"):
+                key, sep, value = s[1:].partition(":")
+                if not sep:
+                    raise SysidError(f"{path}:{lineno}: metadata line must read '# key: value'.")
+                meta[key.strip().lower()] = value.strip()
+                continue
+            cells = next(csv.reader([s]))
+            if header is None:
+                header = [c.strip() for c in cells]
+                if len(set(header)) != len(header):
+                    raise SysidError(f"{path}:{lineno}: header has a duplicated column name.")
+            else:
+                rows.append((lineno, cells))
+    if meta.get("format") != "pneusim-recording/1":
+        raise SysidError(f"{path}: metadata 'format' must be 'pneusim-recording/1', got {meta.get('format')!r}.")
+    if "sample_time_s" not in meta:
+        raise SysidError(f"{path}: metadata 'sample_time_s' is required.")
+    try:
+        ts = float(meta["sample_time_s"])
+    except ValueError:
+        raise SysidError(f"{path}: metadata 'sample_time_s' must be a number, got {meta['sample_time_s']!r}.") from None
+    if header is None:
+        raise SysidError(f"{path}: no header row found.")
+    cols = {}
+    for name in (output, input):
+        if name not in header:
+            raise SysidError(f"{path}: required column {name!r} is missing.")
+        j = header.index(name)
+        vals = []
+        for lineno, cells in rows:
+            try:
+                v = float(cells[j])
+            except (ValueError, IndexError):
+                raise SysidError(f"{path}:{lineno}: column {name!r} must hold a number.") from None
+            if not np.isfinite(v):
+                raise SysidError(f"{path}:{lineno}: column {name!r} must be finite, got {v}.")
+            vals.append(v)
+        cols[name] = np.array(vals)
+    ounit = output.rsplit("_", 1)[-1] if "_" in output else ""
+    iunit = input.rsplit("_", 1)[-1] if "_" in input else ""
+    return IDData(cols[output], cols[input], ts, output_name=output, input_name=input,
+                  output_unit=ounit, input_unit=iunit, metadata=meta)

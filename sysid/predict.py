@@ -1,0 +1,161 @@
+"""Prediction, simulation and MATLAB-style ``compare`` fit.
+
+All models are evaluated through their polynomial form
+``A y = B/F u + C/D e`` (state-space and continuous-time models convert
+themselves with ``to_idpoly()``).
+
+Initial conditions: ``"zero"`` (default) assumes zero input, output and
+noise before the first sample; ``"estimate"`` (simulation only) chooses the
+initial filter state that best fits the measured output in least squares,
+like MATLAB's ``InitialCondition='estimate'``.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.signal import lfilter
+
+from ._checks import check_data
+from .data import IDData
+from .errors import SysidError
+from .polynomial import IDPoly
+
+__all__ = ["predict", "simulate", "compare", "fit_percent"]
+
+
+def as_idpoly(model) -> IDPoly:
+    """Return the polynomial form of ``model`` (internal)."""
+    if isinstance(model, IDPoly):
+        return model
+    conv = getattr(model, "to_idpoly", None)
+    if conv is None:
+        raise SysidError(f"model must be a sysid model (IDPoly, IDSS or IDTF), got {type(model).__name__}.")
+    return conv()
+
+
+def _pad(p, n):
+    out = np.zeros(n)
+    out[:len(p)] = p
+    return out
+
+
+def _free_response_basis(b, a, N):
+    n = max(len(a), len(b)) - 1
+    basis = np.zeros((N, n))
+    x = np.zeros(N)
+    for i in range(n):
+        zi = np.zeros(n)
+        zi[i] = 1.0
+        basis[:, i] = lfilter(b, a, x, zi=zi)[0]
+    return basis
+
+
+def simulate(model, data_or_u, initial: str = "zero") -> np.ndarray:
+    """Noise-free simulation ``y_s = B/(A F) u``.
+
+    Parameters
+    ----------
+    model : IDPoly, IDSS or IDTF
+    data_or_u : IDData or array_like, shape (N,)
+        Input record; an IDData is needed for ``initial="estimate"``.
+    initial : {"zero", "estimate"}
+        Initial conditions (see module docstring).
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        Simulated output.
+    """
+    m = as_idpoly(model)
+    if isinstance(data_or_u, IDData):
+        u = data_or_u.u
+    else:
+        u = np.asarray(data_or_u, dtype=float).ravel()
+        if not np.all(np.isfinite(u)):
+            raise SysidError("u must be finite.")
+    num, den = m.G()
+    ys = lfilter(num, den, u)
+    if initial == "zero":
+        return ys
+    if initial != "estimate":
+        raise SysidError(f"initial must be 'zero' or 'estimate', got {initial!r}.")
+    if not isinstance(data_or_u, IDData):
+        raise SysidError("initial='estimate' needs an IDData (the measured output is used).")
+    basis = _free_response_basis(num, den, u.size)
+    if basis.shape[1]:
+        x0, *_ = np.linalg.lstsq(basis, data_or_u.y - ys, rcond=None)
+        ys = ys + basis @ x0
+    return ys
+
+
+def predict(model, data: IDData, k=1) -> np.ndarray:
+    """k-step-ahead prediction ``y_hat(t | t-k)``; ``k = inf`` is simulation.
+
+    Uses ``y_hat = W_k G u + (1 - W_k) y`` with ``W_k = Hbar_k H^-1`` and
+    ``Hbar_k`` the first ``k`` impulse-response terms of ``H = C/(A D)``
+    (Ljung 1999, eq. 3.31), zero initial conditions.
+
+    Parameters
+    ----------
+    model : IDPoly, IDSS or IDTF
+    data : IDData
+        Measured input and output, shape (N,) each.
+    k : int or math.inf
+        Prediction horizon in samples, ``>= 1``.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+    """
+    data = check_data(data)
+    if k == math.inf or k is None:
+        return simulate(model, data)
+    if isinstance(k, bool) or not float(k).is_integer() or k < 1:
+        raise SysidError(f"k must be an integer >= 1 or math.inf, got {k!r}.")
+    k = int(k)
+    m = as_idpoly(model)
+    AD = np.convolve(m.A, m.D)
+    delta = np.zeros(k)
+    delta[0] = 1.0
+    hbar = lfilter(m.C, AD, delta)
+    num_u = np.convolve(hbar, np.convolve(m.D, m.B))
+    den = np.convolve(m.C, m.F)
+    hAD = np.convolve(hbar, AD)
+    n = max(hAD.size, m.C.size)
+    num_y = _pad(m.C, n) - _pad(hAD, n)
+    num_y[:k] = 0.0  # exact zeros by construction; remove round-off
+    return lfilter(num_u, den, data.u) + lfilter(num_y, m.C, data.y)
+
+
+def fit_percent(y, yhat) -> float:
+    """MATLAB fit: ``100 (1 - ||y - yhat|| / ||y - mean(y)||)`` in percent."""
+    y = np.asarray(y, dtype=float)
+    return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / np.linalg.norm(y - y.mean())))
+
+
+def compare(data: IDData, model, k=math.inf, initial: str = "zero") -> float:
+    """MATLAB ``compare``: fit in percent of the model output to ``data.y``.
+
+    Parameters
+    ----------
+    data : IDData
+        Validation data.
+    model : IDPoly, IDSS or IDTF
+    k : int or math.inf
+        ``math.inf`` (default): simulation; integer: k-step prediction.
+    initial : {"zero", "estimate"}
+        Initial conditions of the simulation (zero by default; MATLAB's
+        default is to estimate them, pass ``"estimate"`` for that).
+
+    Returns
+    -------
+    float
+        Fit in percent (100 is perfect, can be negative).
+    """
+    data = check_data(data)
+    if k == math.inf:
+        yhat = simulate(model, data, initial=initial)
+    else:
+        yhat = predict(model, data, k)
+    return fit_percent(data.y, yhat)
