@@ -121,6 +121,10 @@ def load_rig(name_or_path: str | Path) -> Rig:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise InputFileError(f"not a valid TOML rig file ({exc})", path=path) from None
+    unknown_sections = sorted(set(data) - set(RIG_SECTIONS) - {"name", "description"})
+    if unknown_sections:
+        raise InputFileError(f"unknown section; expected one of {', '.join(RIG_SECTIONS)}",
+                             path=path, field=unknown_sections[0])
     params: dict[str, float] = {}
     sections: dict[str, tuple[str, ...]] = {}
     for section in RIG_SECTIONS:
@@ -139,10 +143,6 @@ def load_rig(name_or_path: str | Path) -> Rig:
                 raise InputFileError("required parameter missing", path=path, field=f"{section}.{key}")
         params.update(table)
         sections[section] = tuple(table)
-    unknown_sections = sorted(set(data) - set(RIG_SECTIONS) - {"name", "description"})
-    if unknown_sections:
-        raise InputFileError(f"unknown section; expected one of {', '.join(RIG_SECTIONS)}",
-                             path=path, field=unknown_sections[0])
     _check_values(params, str(path))
     return Rig(name=str(data.get("name", path.stem)), description=str(data.get("description", "")),
                params=params, sections=sections, source=str(path))

@@ -115,18 +115,22 @@ def score_published_z(ident: dict, y: np.ndarray, u: np.ndarray, warmup: int = 0
     """Paper 1 equations 9-11 on our data: one-step prediction and free-run simulation.
 
     Two readings: *as printed* (the numerator's leading term multiplies ``u(k)``)
-    and *eq. 6* (regressor ``u(k-1) ... u(k-n)``, one sample later).  The free run
+    and *eq. 6* (regressor ``u(k-1) ... u(k-n)``, one sample later), each for
+    every input offset in ``ident['input_offsets']`` (e.g. the valve null).  The free run
     starts from the first sample (deviation variables).
     """
     rows = []
     num, den = ident["num"], ident["den"]
-    for delay, reading in ((0, "as printed"), (1, "eq. 6 regressor (one-sample delay)")):
-        yhat = _published_one_step(num, den, y, u, delay)
+    readings = [(off, d, r) for off in ident.get("input_offsets", [0.0])
+                for d, r in ((0, "as printed"), (1, "eq. 6 regressor (one-sample delay)"))]
+    for offset, delay, reading in readings:
+        reading = f"{reading}, u - {offset:g}" if offset else reading
+        yhat = _published_one_step(num, den, y, u - offset, delay)
         yhat[:warmup] = np.nan
         row = {"identifier": ident["name"], "kind": ident["kind"], "reading": reading, "status": "ok",
                **error_stats(y, yhat), "_yhat": yhat}
         nn = np.concatenate((np.zeros(len(den) - len(num) + delay), num))
-        free = y[0] + sps.lfilter(nn, den, u - u[0])
+        free = y[0] + sps.lfilter(nn, den, u - u[0])  # deviation from the first sample
         row["free_run_fit_percent"] = fit_percent(y, free) if np.all(np.isfinite(free)) else float("nan")
         row["poles_abs_max"] = float(np.max(np.abs(np.roots(den))))
         row["dc_gain"] = float(np.sum(num) / np.sum(den)) if abs(np.sum(den)) > 0 else float("inf")
@@ -137,17 +141,18 @@ def score_published_z(ident: dict, y: np.ndarray, u: np.ndarray, warmup: int = 0
 _UNIT_S = {"s": lambda ts: 1.0, "ms": lambda ts: 1e-3, "sample": lambda ts: ts}
 
 
-def score_published_s(ident: dict, val: tuple, ts: float) -> list[dict]:
+def score_published_s(ident: dict, val: tuple, ts: float, record_s: float | None = None) -> list[dict]:
     """Paper 2 equation 4 under each time-unit reading, simulated (zero state) on the validation data.
 
     If ``s`` and the delay are in units of ``T`` seconds, ``G_T(s_T)`` becomes
     ``G(s T)`` in seconds (coefficient of ``s^i`` times ``T^i``) with a delay of
     ``delay T`` seconds.  The row records poles in rad/s, the DC gain, the
-    slowest time constant against the record length, and the fit.
+    slowest time constant against the record length ``record_s`` (default: the
+    validation data's), and the fit.
     """
     y, u = val
     rows = []
-    record_s = len(y) * ts
+    record_s = len(y) * ts if record_s is None else float(record_s)  # the whole experiment, for the behaviour
     for unit in ident.get("time_units", ["s"]):
         T = _UNIT_S[unit](ts)
         num = np.asarray(ident["num"], float)

@@ -128,7 +128,7 @@ def run_scenario(spec: dict, progress: bool = False, variants: bool = True) -> S
         elif kind == "published_z":
             new = idf.score_published_z(ident, y, u)
         elif kind == "published_s":
-            new = idf.score_published_s(ident, val, ts)
+            new = idf.score_published_s(ident, val, ts, record_s=n * ts)
         elif kind == "physical_fit":
             t_split = n_est * ts
             new = idf.run_physical_fit(ident, rec.slice(None, t_split - ts / 2), rec.slice(t_split - ts / 2, None),

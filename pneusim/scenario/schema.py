@@ -48,7 +48,7 @@ _SIGNAL_KEYS = {"kind": str, "unit": str, "offset": _NUM, "components": list, "b
 _IDENT_KEYS = {"name": str, "kind": str, "orders": list, "order": int, "forgetting": _NUM,
                "initial_covariance": _NUM, "horizons": list, "nx": int, "np": int, "nz": int,
                "iodelay_s": _NUM, "num": list, "den": list, "delay_samples": int, "input_delay_samples": int,
-               "time_units": list, "delay": _NUM, "published": dict, "note": str, "enabled": bool}
+               "time_units": list, "delay": _NUM, "published": dict, "input_offsets": list, "note": str, "enabled": bool}
 METRIC_NAMES = ("fit_percent", "mse", "rmse", "error_std", "wall_time_s")
 
 

@@ -1,0 +1,297 @@
+"""Sweeps: vary scenario keys over a grid or random draws, run locally or on Dask, write one tidy table.
+
+A sweep file (schema in ``scenarios/README.md``)::
+
+    [sweep]
+    scenario = "paper2-multisine.toml"   # relative to the sweep file
+    seeds = [0, 1]                       # experiment.seed of each point (default: the scenario's)
+    [base]                               # dotted-key overrides applied to every run
+    "experiment.duration_s" = 5.0
+    [grid]                               # Cartesian product of the lists
+    "rig.overrides.supply_Pa" = [5e5, 6e5, 7e5]
+    [random]                             # n draws, seeded, combined with every grid point
+    n = 10
+    seed = 0
+    "rig.overrides.moving_mass_kg" = { low = 0.5, high = 2.0 }      # uniform (log = true: log-uniform)
+    "identifiers.0.orders" = { choices = [[2, 2, 1], [3, 3, 1]] }
+    [[points]]                           # extra points, appended as given
+    "rig.overrides.moving_mass_kg" = 3.0
+
+Every run is independent and seeded; its result is stored as
+``OUT/runs/RUN_ID.json`` (``RUN_ID`` hashes the parameters and the seed), so a
+restarted sweep skips the runs already done.  A run that raises is recorded
+with its error and the sweep goes on.  The table (``OUT/sweep.csv`` and
+``OUT/sweep.parquet``) has one row per run and identifier reading.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import json
+import math
+import os
+import time
+import tomllib
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputFileError, PneusimError
+from .schema import load_scenario, set_dotted, validate_scenario
+
+__all__ = ["load_sweep", "expand_runs", "run_one", "run_sweep", "build_table", "write_table", "parse_set_items",
+           "TABLE_METRICS"]
+
+TABLE_METRICS = ("fit_percent", "mse", "rmse", "error_std", "square_error")
+
+
+def parse_set_items(items) -> dict:
+    """``["KEY=VALUE", ...]`` with VALUE read as a TOML value (bare words as strings)."""
+    out = {}
+    for item in items:
+        key, eq, text = item.partition("=")
+        if not eq or not key.strip():
+            raise PneusimError(f"--set {item!r}: expected KEY=VALUE")
+        try:
+            out[key.strip()] = tomllib.loads(f"v = {text}")["v"]
+        except tomllib.TOMLDecodeError:
+            out[key.strip()] = text
+    return out
+
+
+def load_sweep(path) -> dict:
+    """Read a sweep file; returns ``{"name", "scenario": spec, "scenario_path", "base", "grid", "random",
+    "seeds", "variants"}`` with every varied key checked against the scenario."""
+    path = Path(path)
+    if not path.exists():
+        raise InputFileError("sweep file not found", path=path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputFileError(f"not a valid TOML sweep file ({exc})", path=path) from None
+    unknown = sorted(set(data) - {"sweep", "base", "grid", "random", "points"})
+    if unknown:
+        raise InputFileError("unknown table; expected sweep, base, grid, random, points", path=path,
+                             field=unknown[0])
+    points = data.get("points", [])
+    if not isinstance(points, list) or not all(isinstance(p, dict) and p for p in points):
+        raise InputFileError("expected [[points]] tables of dotted key = value", path=path, field="points")
+    head = data.get("sweep", {})
+    for key in sorted(set(head) - {"name", "scenario", "seeds", "variants"}):
+        raise InputFileError("unknown key; expected name, scenario, seeds, variants", path=path, field=f"sweep.{key}")
+    if not isinstance(head.get("scenario"), str):
+        raise InputFileError("required: the scenario file (a string path)", path=path, field="sweep.scenario")
+    scen_path = (path.parent / head["scenario"]).resolve()
+    spec = load_scenario(scen_path)
+    seeds = head.get("seeds", [spec["experiment"]["seed"]])
+    if not isinstance(seeds, list) or not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
+        raise InputFileError("expected a non-empty list of integers", path=path, field="sweep.seeds")
+    grid = data.get("grid", {})
+    for key, values in grid.items():
+        if not isinstance(values, list) or not values:
+            raise InputFileError("expected a non-empty list of values", path=path, field=f"grid.{key}")
+    rnd = dict(data.get("random", {}))
+    n_rand = rnd.pop("n", 0 if not rnd else None)
+    rnd_seed = rnd.pop("seed", 0)
+    if n_rand is None or not isinstance(n_rand, int) or n_rand < 0:
+        raise InputFileError("expected the number of random draws (integer >= 0)", path=path, field="random.n")
+    for key, dist in rnd.items():
+        ok = isinstance(dist, dict) and (("low" in dist and "high" in dist) or "choices" in dist)
+        if not ok or set(dist) - {"low", "high", "log", "integer", "choices"}:
+            raise InputFileError("expected { low = , high = [, log = true][, integer = true] } or { choices = [...] }",
+                                 path=path, field=f"random.{key}")
+    sweep = {"name": head.get("name", path.stem), "scenario": spec, "scenario_path": str(scen_path),
+             "base": data.get("base", {}), "grid": grid, "random": rnd, "n_random": n_rand, "random_seed": rnd_seed,
+             "seeds": seeds, "variants": bool(head.get("variants", False)), "path": str(path), "points": points}
+    # validate every varied key once, with its first value, naming the sweep file
+    probe = expand_runs(sweep)[:1]
+    for params, seed in probe:
+        _apply(spec, sweep["base"], params, seed, where=str(path))
+    return sweep
+
+
+def _draw(dist, rng):
+    if "choices" in dist:
+        return copy.deepcopy(dist["choices"][int(rng.integers(len(dist["choices"])))])
+    lo, hi = float(dist["low"]), float(dist["high"])
+    v = math.exp(rng.uniform(math.log(lo), math.log(hi))) if dist.get("log") else rng.uniform(lo, hi)
+    return int(round(v)) if dist.get("integer") else float(v)
+
+
+def expand_runs(sweep: dict) -> list[tuple[dict, int]]:
+    """``[(params, seed)]``: (grid points x random draws, then the explicit points) x seeds, in a fixed order."""
+    keys = list(sweep["grid"])
+    points = [dict(zip(keys, combo)) for combo in itertools.product(*(sweep["grid"][k] for k in keys))] or [{}]
+    if sweep["random"]:
+        rng = np.random.default_rng(sweep["random_seed"])
+        draws = [{k: _draw(d, rng) for k, d in sweep["random"].items()} for _ in range(sweep["n_random"])]
+        points = [{**p, **d} for p in points for d in draws]
+    if sweep.get("points"):
+        points = ([] if points == [{}] else points) + [dict(p) for p in sweep["points"]]
+    return [(p, s) for p in points for s in sweep["seeds"]]
+
+
+def run_id(params: dict, seed: int) -> str:
+    text = json.dumps({"params": params, "seed": seed}, sort_keys=True, default=str)
+    return hashlib.sha1(text.encode()).hexdigest()[:12]
+
+
+def _apply(spec, base, params, seed, where="sweep"):
+    spec = copy.deepcopy(spec)
+    for key, value in {**base, **params}.items():
+        set_dotted(spec, key, value, where=where)
+    spec["experiment"]["seed"] = int(seed)
+    return validate_scenario(spec, where=f"{where} (run {params}, seed {seed})")
+
+
+def run_one(spec: dict, base: dict, params: dict, seed: int, variants: bool = False) -> dict:
+    """One sweep run (picklable, for any executor): never raises; errors are recorded in the result."""
+    from .identify import clean_row
+    from .runner import run_scenario
+
+    started = time.perf_counter()
+    out = {"run_id": run_id(params, seed), "params": params, "seed": seed, "rows": [], "error": None,
+           "worker_pid": os.getpid()}
+    try:
+        result = run_scenario(_apply(spec, base, params, seed), variants=variants)
+        out["rows"] = [clean_row(r) for r in result.rows]
+    except Exception as exc:  # noqa: BLE001 - a failed run is a result of the sweep
+        out["error"] = f"{type(exc).__name__}: {exc}"
+        out["traceback"] = traceback.format_exc(limit=5)
+    out["run_time_s"] = time.perf_counter() - started
+    return out
+
+
+def _executor_map(tasks, workers: int, dask: str | None, progress: bool):
+    """Yield results of ``run_one(*task)`` as they complete."""
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(tasks), desc="sweep", unit="run", mininterval=0.5)
+    try:
+        if dask:
+            from distributed import Client, LocalCluster, as_completed
+
+            cluster = None
+            if dask == "local":
+                cluster = LocalCluster(n_workers=workers, threads_per_worker=1, host="127.0.0.1", processes=True,
+                                       dashboard_address=None)
+                client = Client(cluster)
+            else:
+                client = Client(dask)
+            try:
+                futures = [client.submit(run_one, *t, pure=False) for t in tasks]
+                for fut in as_completed(futures):
+                    yield fut.result()
+                    if bar:
+                        bar.update()
+            finally:
+                client.close()
+                if cluster is not None:
+                    cluster.close()
+        elif workers <= 0:
+            for t in tasks:
+                yield run_one(*t)
+                if bar:
+                    bar.update()
+        else:
+            from concurrent.futures import ProcessPoolExecutor, as_completed as cf_completed
+
+            with ProcessPoolExecutor(max_workers=workers) as pool:
+                futures = [pool.submit(run_one, *t) for t in tasks]
+                for fut in cf_completed(futures):
+                    yield fut.result()
+                    if bar:
+                        bar.update()
+    finally:
+        if bar:
+            bar.close()
+
+
+def run_sweep(sweep: dict, out_dir, workers: int | None = None, dask: str | None = None, progress: bool = True,
+              retry_failed: bool = False) -> dict:
+    """Run every run not yet stored in ``out_dir/runs``, then write the table and plots.
+
+    Parameters
+    ----------
+    workers : int or None
+        Local processes (default: CPU count; 0 runs in this process); with
+        ``dask = "local"`` the number of Dask workers.
+    dask : str or None
+        ``None`` (local processes), ``"local"`` (a loopback LocalCluster) or a scheduler address.
+
+    Returns
+    -------
+    dict
+        ``{"n_runs", "n_done_before", "n_failed", "wall_time_s", "runs_per_s", "table": [...rows]}``.
+    """
+    out = Path(out_dir)
+    (out / "runs").mkdir(parents=True, exist_ok=True)
+    runs = expand_runs(sweep)
+    todo = []
+    for params, seed in runs:
+        f = out / "runs" / f"{run_id(params, seed)}.json"
+        if f.exists():
+            done = json.loads(f.read_text())
+            if not (retry_failed and done.get("error")):
+                continue
+        todo.append((sweep["scenario"], sweep["base"], params, seed, sweep["variants"]))
+    if workers is None:
+        workers = os.cpu_count() or 1
+    started = time.perf_counter()
+    for res in _executor_map(todo, workers, dask, progress):
+        (out / "runs" / f"{res['run_id']}.json").write_text(json.dumps(res, allow_nan=False, default=str))
+    wall = time.perf_counter() - started
+    results = [json.loads((out / "runs" / f"{run_id(p, s)}.json").read_text()) for p, s in runs]
+    table = build_table(results)
+    write_table(table, out)
+    from .sweep_plots import summary_plots
+    varied = list(dict.fromkeys(list(sweep["grid"]) + list(sweep["random"]) + [k for p in sweep["points"] for k in p]))
+    summary_plots(table, varied, out)
+    return {"n_runs": len(runs), "n_done_before": len(runs) - len(todo), "n_failed": sum(bool(r["error"]) for r in results),
+            "wall_time_s": wall, "runs_per_s": len(todo) / wall if todo and wall > 0 else float("nan"), "table": table}
+
+
+def _cell(v):
+    if isinstance(v, (list, dict)):
+        return json.dumps(v)
+    return v
+
+
+def build_table(results: list[dict]) -> list[dict]:
+    """One row per run and identifier reading (one row with the error for a failed run); run order kept."""
+    table = []
+    for res in results:
+        base = {"run_id": res["run_id"], "seed": res["seed"], **{k: _cell(v) for k, v in res["params"].items()}}
+        if res["error"]:
+            table.append({**base, "identifier": None, "reading": None, "status": "run failed", "error": res["error"],
+                          **{m: None for m in TABLE_METRICS}, "identifier_time_s": None, "run_time_s": res["run_time_s"]})
+            continue
+        for r in res["rows"]:
+            table.append({**base, "identifier": r["identifier"], "reading": r.get("reading", ""), "status": r["status"],
+                          "error": r.get("reason"), **{m: r.get(m) for m in TABLE_METRICS},
+                          "identifier_time_s": r.get("wall_time_s"), "run_time_s": res["run_time_s"]})
+    return table
+
+
+def write_table(table: list[dict], out_dir) -> None:
+    """``sweep.csv`` and ``sweep.parquet`` (pyarrow; columns in first-seen order)."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+    import pyarrow.parquet as pq
+
+    columns = list(dict.fromkeys(k for row in table for k in row))
+    data = {c: [row.get(c) for row in table] for c in columns}
+    for c, values in data.items():
+        kinds = {type(v) for v in values if v is not None}
+        if len(kinds) > 1 and not kinds <= {int, float}:
+            data[c] = [None if v is None else str(v) for v in values]
+        elif kinds == {int, float}:
+            data[c] = [None if v is None else float(v) for v in values]
+    tab = pa.table(data) if table else pa.table({"run_id": pa.array([], pa.string())})
+    out = Path(out_dir)
+    pq.write_table(tab, out / "sweep.parquet")
+    pacsv.write_csv(tab, out / "sweep.csv")

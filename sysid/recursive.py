@@ -1,0 +1,240 @@
+"""Recursive least squares (RLS) for ARX and extended least squares for ARMAX.
+
+The recursion is eq. (8) of the online-identification paper
+(``/work/shared/papers/mixed-reality-online-identification.md``)::
+
+    eps   = y(t) - psi^T theta
+    theta <- theta + P psi eps / (lambda + psi^T P psi)
+    P     <- (P - P psi psi^T P / (lambda + psi^T P psi)) / lambda
+
+with ``P(0) = c I``, forgetting factor ``lambda`` and regressor
+``psi(t) = [-y(t-1) .. -y(t-na), u(t-nk) .. u(t-nk-nb+1), e(t-1) .. e(t-nc)]``.
+For ARMAX (``nc > 0``) ``e`` are the a-posteriori residuals
+``y(t) - psi^T theta(t)`` (extended least squares, Ljung 1999 sec. 11.7).
+
+Implementation note: to keep one ``update`` to a handful of BLAS calls,
+``theta`` and ``Q = lambda^t P`` are stored side by side in one Fortran
+array ``M = [Q | theta]`` and updated with a single rank-one ``dger`` call;
+``P = Q / lambda^t`` is recovered on access and ``Q`` is renormalised before
+``lambda^t`` underflows.  This is algebraically identical to eq. (8).
+"""
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+from scipy.linalg.blas import dger
+
+from ._checks import check_data, check_forgetting, check_orders
+from .data import IDData
+from .errors import SysidError
+from .polynomial import IDPoly
+
+_dot = np.dot
+
+__all__ = ["RecursiveARX", "RecursiveARMAX", "RLSResult", "rls"]
+
+
+class RecursiveARX:
+    """Online RLS estimator of an ARX (or, with ``nc > 0``, ARMAX) model.
+
+    Parameters
+    ----------
+    orders : sequence of int
+        ``[na, nb, nk]`` (ARX) or ``[na, nb, nc, nk]`` (ARMAX, extended LS).
+    forgetting : float
+        Forgetting factor ``lambda`` in (0, 1]; the memory is about
+        ``1 / (1 - lambda)`` samples.
+    initial_covariance : float
+        ``c`` in ``P(0) = c I`` (> 0; the paper uses 100 < c < 10 000).
+    initial_parameters : array_like, shape (d,), optional
+        ``theta(0)``; zeros by default.
+    Ts : float
+        Sample time in seconds, used only for the returned :class:`IDPoly`.
+
+    Examples
+    --------
+    >>> est = RecursiveARX([2, 2, 1], forgetting=0.99, initial_covariance=1000.0)
+    >>> for yk, uk in zip(y, u):          # doctest: +SKIP
+    ...     est.update(yk, uk)
+    >>> est.parameters                    # doctest: +SKIP
+    """
+
+    def __init__(self, orders, forgetting: float = 1.0, initial_covariance: float = 1000.0,
+                 initial_parameters=None, Ts: float = 1.0):
+        orders = list(orders) if np.iterable(orders) else orders
+        if np.iterable(orders) and len(orders) == 4:
+            na, nb, nc, nk = check_orders(orders, ("na", "nb", "nc", "nk"), (0, 0, 0, 0))
+        else:
+            na, nb, nk = check_orders(orders, ("na", "nb", "nk"), (0, 0, 0))
+            nc = 0
+        d = na + nb + nc
+        if d == 0:
+            raise SysidError("orders must give at least one parameter, got na = nb = nc = 0.")
+        lam = check_forgetting(forgetting)
+        try:
+            c = float(initial_covariance)
+        except (TypeError, ValueError):
+            c = float("nan")
+        if not (np.isfinite(c) and c > 0):
+            raise SysidError(f"initial_covariance must be a positive number c (P0 = c I), got {initial_covariance!r}.")
+        self.na, self.nb, self.nc, self.nk, self.d = na, nb, nc, nk, d
+        self.forgetting = lam
+        self.initial_covariance = c
+        self.Ts = Ts
+        self._M = np.zeros((d, d + 1), order="F")
+        self._M[:, :d] = c * np.eye(d)
+        if initial_parameters is not None:
+            th = np.asarray(initial_parameters, dtype=float).ravel()
+            if th.size != d:
+                raise SysidError(f"initial_parameters must have {d} entries, got {th.size}.")
+            self._M[:, d] = th
+        self._s = 1.0
+        self._psi = np.zeros(d)
+        self._MT = self._M.T
+        self._udelay = deque([0.0] * nk)  # u(t-1) .. u(t-nk), most recent first
+        self.n_updates = 0
+
+    # ------------------------------------------------------------------ online
+    def update(self, y: float, u: float) -> float:
+        """Process one sample ``(y(t), u(t))``; return the prior error ``y - psi^T theta``.
+
+        Parameters
+        ----------
+        y : float
+            Output at time t.
+        u : float
+            Input at time t (used now if ``nk = 0``, otherwise delayed).
+        """
+        psi = self._psi
+        na, nb = self.na, self.nb
+        # input part of the regressor: u(t-nk) becomes the newest entry
+        if nb:
+            if self.nk:
+                ud = self._udelay
+                ud.appendleft(u)
+                u = ud.pop()
+            if nb > 1:
+                psi[na + 1:na + nb] = psi[na:na + nb - 1]
+            psi[na] = u
+        M = self._M
+        d = self.d
+        v = _dot(self._MT, psi)            # [Q psi ; theta^T psi]
+        k = v[:d]
+        s = self._s
+        den = s * self.forgetting + psi.dot(k)
+        eps = y - v[d]
+        v[d] = -eps
+        dger(-1.0 / den, k, v, a=M, overwrite_a=1)
+        s *= self.forgetting
+        if s < 1e-150:
+            M[:, :d] *= 1.0 / s
+            s = 1.0
+        self._s = s
+        # shift in the new output (and residual) for the next sample
+        if na:
+            if na > 1:
+                psi[1:na] = psi[:na - 1]
+            psi[0] = -y
+        nc = self.nc
+        if nc:
+            j = na + nb
+            if nc > 1:
+                psi[j + 1:j + nc] = psi[j:j + nc - 1]
+            psi[j] = eps * s / den      # a-posteriori residual
+        self.n_updates += 1
+        return float(eps)
+
+    def partial_fit(self, data: IDData) -> "RecursiveARX":
+        """Run :meth:`update` over every sample of ``data``; return ``self``."""
+        data = check_data(data)
+        for yk, uk in zip(data.y.tolist(), data.u.tolist()):
+            self.update(yk, uk)
+        return self
+
+    # --------------------------------------------------------------- results
+    @property
+    def parameters(self) -> np.ndarray:
+        """Current ``theta = [a_1.., b_nk.., c_1..]``, shape (d,) (a copy)."""
+        return self._M[:, self.d].copy()
+
+    @property
+    def P(self) -> np.ndarray:
+        """Current ``P`` matrix, shape (d, d) (a copy)."""
+        return self._M[:, :self.d] / self._s
+
+    def to_idpoly(self) -> IDPoly:
+        """Current estimate as an :class:`IDPoly` (ARX or ARMAX)."""
+        th = self.parameters
+        na, nb, nc, nk = self.na, self.nb, self.nc, self.nk
+        B = np.zeros(nk + nb)
+        B[nk:] = th[na:na + nb]
+        return IDPoly(np.r_[1.0, th[:na]], B, np.r_[1.0, th[na + nb:]], Ts=self.Ts, nk=nk, nb=nb,
+                      structure="armax" if nc else "arx")
+
+
+RecursiveARMAX = RecursiveARX
+"""Alias: ``RecursiveARMAX([na, nb, nc, nk], ...)`` runs extended least squares."""
+
+
+class RLSResult:
+    """Result of :func:`rls` on a whole record.
+
+    Attributes
+    ----------
+    theta_ : ndarray, shape (d,)
+        Final parameter vector ``[a.., b.., c..]``.
+    theta_history : ndarray, shape (N, d)
+        ``theta`` after each sample (also ``theta_history_``).
+    errors_ : ndarray, shape (N,)
+        Prior (one-step) prediction errors.
+    model_ : IDPoly
+        Final estimate as a polynomial model.
+    estimator_ : RecursiveARX
+        The estimator, ready to continue online with ``update``.
+    """
+
+    def __init__(self, estimator, history, errors):
+        self.estimator_ = estimator
+        self.theta_history = history
+        self.theta_history_ = history
+        self.errors_ = errors
+        self.theta_ = history[-1].copy()
+        self.model_ = estimator.to_idpoly()
+
+    @property
+    def model(self) -> IDPoly:
+        return self.model_
+
+
+def rls(data: IDData, orders, forgetting: float = 1.0, initial_covariance: float = 1000.0,
+        initial_parameters=None) -> RLSResult:
+    """Recursive least squares over a whole record, keeping the parameter history.
+
+    Parameters
+    ----------
+    data : IDData
+    orders : sequence of int
+        ``[na, nb, nk]`` (ARX) or ``[na, nb, nc, nk]`` (ARMAX by extended LS).
+    forgetting : float
+        ``lambda`` in (0, 1].
+    initial_covariance : float
+        ``c`` in ``P0 = c I``.
+    initial_parameters : array_like, optional
+        ``theta(0)``.
+
+    Returns
+    -------
+    RLSResult
+        With ``theta_``, ``theta_history`` (N, d), ``errors_`` and ``model_``.
+    """
+    data = check_data(data)
+    est = RecursiveARX(orders, forgetting, initial_covariance, initial_parameters, Ts=data.Ts)
+    N = data.N
+    hist = np.empty((N, est.d))
+    errs = np.empty(N)
+    M, d, upd = est._M, est.d, est.update
+    for t, (yk, uk) in enumerate(zip(data.y.tolist(), data.u.tolist())):
+        errs[t] = upd(yk, uk)
+        hist[t] = M[:, d]
+    return RLSResult(est, hist, errs)
