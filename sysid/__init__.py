@@ -9,6 +9,8 @@ from .errors import SysidError
 from .data import IDData, iddata, detrend, load_recording
 from .polynomial import IDPoly, idpoly
 from .arx import ARX, arx
+from .pem import PEM, ARMAX, OE, BJ, armax, oe, bj, pem
+from .recursive import RecursiveARX, RecursiveARMAX, RLSResult, rls
 from .predict import predict, simulate, compare, fit_percent
 
 __all__ = [
@@ -16,5 +18,7 @@ __all__ = [
     "IDData", "iddata", "detrend", "load_recording",
     "IDPoly", "idpoly",
     "ARX", "arx",
+    "PEM", "ARMAX", "OE", "BJ", "armax", "oe", "bj", "pem",
+    "RecursiveARX", "RecursiveARMAX", "RLSResult", "rls",
     "predict", "simulate", "compare", "fit_percent",
 ]

@@ -127,9 +127,17 @@ class RecursiveARX:
         v[d] = -eps
         dger(-1.0 / den, k, v, a=M, overwrite_a=1)
         s *= self.forgetting
-        if s < 1e-150:
-            M[:, :d] *= 1.0 / s
-            s = 1.0
+        n = self.n_updates + 1
+        self.n_updates = n
+        if not n & 7:
+            # dger's rounding is not symmetric; an asymmetric part of P grows
+            # like lambda^-t (Verhaegen 1989), so restore symmetry every 8 samples
+            Q = M[:, :d]
+            Q += Q.T
+            Q *= 0.5
+            if s < 1e-150:
+                Q *= 1.0 / s
+                s = 1.0
         self._s = s
         # shift in the new output (and residual) for the next sample
         if na:
@@ -142,7 +150,6 @@ class RecursiveARX:
             if nc > 1:
                 psi[j + 1:j + nc] = psi[j:j + nc - 1]
             psi[j] = eps * s / den      # a-posteriori residual
-        self.n_updates += 1
         return float(eps)
 
     def partial_fit(self, data: IDData) -> "RecursiveARX":

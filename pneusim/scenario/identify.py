@@ -99,15 +99,14 @@ def run_blackbox(ident: dict, est: tuple, val: tuple, ts: float) -> list[dict]:
 def _published_one_step(num, den, y, u, input_delay):
     """One-step prediction of ``A(z) y = B(z) u`` with the printed z-polynomials (descending powers).
 
-    ``num`` is padded on the left to the length of ``den``; ``input_delay`` samples shift ``u``.
+    ``yhat(k) = y(k) - (A(q) y)(k) + (B(q) u)(k)``, i.e. ``-a1 y(k-1) - ... + b0 u(k-d) + ...``;
+    ``num`` is padded on the left to the length of ``den``; ``input_delay`` (d) samples shift ``u``.
+    The first ``n + d`` samples (incomplete regressor) are NaN.
     """
     den = np.asarray(den, float) / den[0]
-    num = np.concatenate((np.zeros(len(den) - len(num)), np.asarray(num, float))) / 1.0
-    n = len(den) - 1
-    us = np.concatenate((np.zeros(input_delay), u))[:len(u)] if input_delay else u
-    yhat = np.full(len(y), np.nan)
-    for j in range(n + input_delay, len(y)):
-        yhat[j] = -den[1:] @ y[j - 1::-1][:n] + num @ us[j::-1][:n + 1] if j >= n else np.nan
+    num = np.concatenate((np.zeros(len(den) - len(num) + input_delay), np.asarray(num, float))) / den[0]
+    yhat = y - sps.lfilter(den, [1.0], y) + sps.lfilter(num, [1.0], u)
+    yhat[:len(den) - 1 + input_delay] = np.nan
     return yhat
 
 

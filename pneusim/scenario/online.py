@@ -33,7 +33,7 @@ from ..plant import SimulatedPlant
 from ..recording import Recording
 from ..rig import Rig
 
-__all__ = ["PaperRLS", "simulate_online", "OnlineResult"]
+__all__ = ["PaperRLS", "SysidRLS", "make_rls", "simulate_online", "OnlineResult"]
 
 
 class PaperRLS:
@@ -50,6 +50,8 @@ class PaperRLS:
     horizons : sequence of int
         Prediction steps to produce at every sample (1 = one-step prediction).
     """
+
+    engine = "pneusim PaperRLS"
 
     def __init__(self, order: int, forgetting: float = 0.99, initial_covariance: float = 1000.0,
                  horizons: Sequence[int] = (1,)):
@@ -105,6 +107,55 @@ class PaperRLS:
                 hist.append(float(-a @ past_y + b @ past_u))
             out[h] = hist[-1]
         return out
+
+
+class SysidRLS(PaperRLS):
+    """:class:`PaperRLS` whose recursion is :class:`sysid.RecursiveARX` ``([n, n, 1])`` (same eq. 8).
+
+    ``sysid`` takes ``(y(k), u(k))`` together, so the update on ``y(k)`` is
+    completed in :meth:`add_input`, once the controller has chosen ``u(k)``;
+    the prediction made before ``y(k)`` is taken is unchanged.
+    """
+
+    engine = "sysid.RecursiveARX"
+
+    def __init__(self, order, forgetting=0.99, initial_covariance=1000.0, horizons=(1,)):
+        import sysid
+
+        super().__init__(order, forgetting, initial_covariance, horizons)
+        self._est = sysid.RecursiveARX([self.order, self.order, 1], forgetting=self.forgetting,
+                                       initial_covariance=self.c)
+        self._pending_y = 0.0
+
+    def update(self, y: float) -> dict[int, float]:
+        preds = self.predictions()
+        self._pending_y = float(y)
+        self._y.append(float(y))
+        self.k += 1
+        return preds
+
+    def add_input(self, u: float) -> None:
+        self._est.update(self._pending_y, float(u))
+        self.theta = np.asarray(self._est.parameters, dtype=float).copy()
+        self._thetas.append(self.theta.copy())
+        self._u.append(float(u))
+
+
+def make_rls(order, forgetting, initial_covariance, horizons, engine: str = "auto") -> PaperRLS:
+    """The in-loop estimator: ``sysid`` (its RecursiveARX), ``pneusim`` (:class:`PaperRLS`) or
+    ``auto`` (sysid when it has RecursiveARX, else pneusim)."""
+    if engine in ("auto", "sysid"):
+        try:
+            import sysid
+
+            if hasattr(sysid, "RecursiveARX"):
+                return SysidRLS(order, forgetting, initial_covariance, horizons)
+        except ImportError:
+            pass
+        if engine == "sysid":
+            from ..errors import PneusimError
+            raise PneusimError("engine = 'sysid' needs sysid.RecursiveARX, which is not available")
+    return PaperRLS(order, forgetting, initial_covariance, horizons)
 
 
 @dataclass
@@ -169,8 +220,8 @@ def simulate_online(rig: Rig, experiment: Experiment, estimators: dict[str, Pape
             for name, est in estimators.items():
                 for h, v in est.update(y).items():
                     preds[(name, h)][k] = v
-                thetas[name][k] = est.theta
                 est.add_input(to_input(u, k))
+                thetas[name][k] = est.theta
             pos[k], cmd[k], pa[k], pb[k] = m.position_m, u, m.pressure_a_Pa, m.pressure_b_Pa
             if k == n - 1:
                 break

@@ -17,7 +17,7 @@ from ..model import parse_effect_text
 from ..rig import load_rig
 from ..simulate import simulate
 from . import identify as idf
-from .online import PaperRLS, simulate_online
+from .online import make_rls, simulate_online
 from .signals import build_experiment, input_signal, output_signal, sensor_gain
 
 __all__ = ["ScenarioResult", "run_scenario", "end_stop_summary"]
@@ -89,7 +89,8 @@ def run_scenario(spec: dict, progress: bool = False, variants: bool = True) -> S
     if experiment.sample_time_s != rig.sample_time_s:
         rig = rig.with_params({"sample_time_s": experiment.sample_time_s})
     idents = [i for i in spec["identifiers"] if i.get("enabled", True)]
-    online = {i["name"]: PaperRLS(i["order"], i["forgetting"], i["initial_covariance"], i["horizons"])
+    online = {i["name"]: make_rls(i["order"], i["forgetting"], i["initial_covariance"], i["horizons"],
+                                  i.get("engine", "auto"))
               for i in idents if i["kind"] == "rls"}
     seed, noise = int(exp_spec["seed"]), float(exp_spec["noise_scale"])
     t0 = time.perf_counter()
@@ -123,6 +124,7 @@ def run_scenario(spec: dict, progress: bool = False, variants: bool = True) -> S
                 th = thetas[ident["name"]][-1]
                 new.append({"identifier": ident["name"], "kind": kind, "reading": f"online, {h}-step prediction",
                             "horizon": h, "order": ident["order"], "forgetting": ident["forgetting"],
+                            "engine": online[ident["name"]].engine,
                             "status": "ok", **idf.error_stats(y, yhat), "_yhat": yhat,
                             "theta_final": [float(v) for v in th]})
         elif kind == "published_z":

@@ -48,7 +48,7 @@ _SIGNAL_KEYS = {"kind": str, "unit": str, "offset": _NUM, "components": list, "b
 _IDENT_KEYS = {"name": str, "kind": str, "orders": list, "order": int, "forgetting": _NUM,
                "initial_covariance": _NUM, "horizons": list, "nx": int, "np": int, "nz": int,
                "iodelay_s": _NUM, "num": list, "den": list, "delay_samples": int, "input_delay_samples": int,
-               "time_units": list, "delay": _NUM, "published": dict, "input_offsets": list, "note": str, "enabled": bool}
+               "time_units": list, "delay": _NUM, "published": dict, "input_offsets": list, "engine": str, "note": str, "enabled": bool}
 METRIC_NAMES = ("fit_percent", "mse", "rmse", "error_std", "wall_time_s")
 
 
@@ -209,6 +209,7 @@ def _validate_identifier(where, prefix, ident):
             _fail(where, f"{prefix}.forgetting", f"expected a number in (0, 1], got {lam!r}")
         if not ident.setdefault("initial_covariance", 1000.0) > 0:
             _fail(where, f"{prefix}.initial_covariance", "expected a positive number")
+        _check_choice(where, f"{prefix}.engine", ident.setdefault("engine", "auto"), ("auto", "sysid", "pneusim"))
         hs = ident.setdefault("horizons", [1])
         if not hs or not all(isinstance(h, int) and h >= 1 for h in hs):
             _fail(where, f"{prefix}.horizons", "expected a list of positive integers (prediction steps)")

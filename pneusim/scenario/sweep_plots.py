@@ -36,6 +36,9 @@ def summary_plots(table: list[dict], varied: list[str], out_dir, metric: str = "
             ax.plot(xs, [m for _, m in pts], "o", ms=4, alpha=0.7, label=label)
         if not numeric:
             ax.set_xticks(range(len(values)), values, rotation=30, fontsize=7)
+        if metric == "fit_percent":
+            lowest = min(m for s in series.values() for _, m in s)
+            ax.set_ylim(max(lowest, -100.0) - 5.0, 105.0)     # fits below -100 % are off the chart
         ax.set_xlabel(key)
         ax.set_ylabel(metric)
         ax.legend(fontsize=6)

@@ -1,0 +1,44 @@
+import numpy as np
+import pytest
+
+import sysid
+
+
+def test_iddata_holds_signals_and_slices():
+    y = np.arange(10.0)
+    u = np.ones(10)
+    d = sysid.iddata(y, u, 0.5, output_name="position_m", output_unit="m")
+    assert len(d) == 10 and d.Ts == 0.5
+    est, val = d.split(6)
+    assert est.N == 6 and val.N == 4
+    assert val.tstart == pytest.approx(3.0)
+    np.testing.assert_allclose(val.time, [3.0, 3.5, 4.0, 4.5])
+    assert d[2:5].y.tolist() == [2.0, 3.0, 4.0]
+
+
+def test_detrend_removes_mean_and_line():
+    t = np.arange(100.0)
+    d = sysid.iddata(3 + 2 * t, 5 + 0 * t, 1.0)
+    assert abs(d.detrend(0).u).max() < 1e-12
+    assert abs(sysid.detrend(d, 1).y).max() < 1e-9
+
+
+def test_load_recording_reads_metadata_and_columns(tmp_path):
+    p = tmp_path / "rec.csv"
+    t = np.arange(60) * 0.01
+    lines = ["# format: pneusim-recording/1", "# sample_time_s: 0.01", "# rig: paper1-mre",
+             "time_s,valve_cmd_V,position_m,pressure_a_Pa"]
+    lines += [f"{ti:.3f},{5 + np.sin(ti):.5f},{0.05 + 0.01 * ti:.5f},400000" for ti in t]
+    p.write_text("\n".join(lines) + "\n")
+    d = sysid.load_recording(p)
+    assert d.Ts == 0.01 and d.N == 60
+    assert d.output_name == "position_m" and d.input_name == "valve_cmd_V"
+    assert d.metadata["rig"] == "paper1-mre"
+    assert d.y[1] == pytest.approx(0.05 + 0.01 * 0.01)
+
+
+def test_load_recording_rejects_missing_column(tmp_path):
+    p = tmp_path / "bad.csv"
+    p.write_text("# format: pneusim-recording/1\n# sample_time_s: 0.01\ntime_s,valve_cmd_V\n0,5\n")
+    with pytest.raises(sysid.SysidError, match="position_m"):
+        sysid.load_recording(p)
