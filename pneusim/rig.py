@@ -13,11 +13,12 @@ a user copies one and edits it to describe their own rig.
 from __future__ import annotations
 
 import dataclasses
-import tomllib
+
 from pathlib import Path
 from typing import Mapping
 
 from .errors import InputFileError, PneusimError
+from .tomlfile import read_toml
 
 __all__ = ["Rig", "load_rig", "known_rig_names", "known_stroke_m", "RIG_SECTIONS"]
 
@@ -115,12 +116,7 @@ def load_rig(name_or_path: str | Path) -> Rig:
             raise InputFileError(
                 f"unknown rig {text_name!r}; expected one of {', '.join(known_rig_names())} "
                 "or the path of a rig file (.toml)")
-    if not path.exists():
-        raise InputFileError("rig file not found", path=path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputFileError(f"not a valid TOML rig file ({exc})", path=path) from None
+    data = read_toml(path, "rig")
     unknown_sections = sorted(set(data) - set(RIG_SECTIONS) - {"name", "description"})
     if unknown_sections:
         raise InputFileError(f"unknown section; expected one of {', '.join(RIG_SECTIONS)}",

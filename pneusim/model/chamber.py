@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 
-import casadi as ca
+
 
 __all__ = ["GAMMA", "R_AIR_J_PER_KG_K", "areas_m2", "chamber_volumes_m3", "pressure_rate", "temperature_rate"]
 

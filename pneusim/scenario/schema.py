@@ -11,11 +11,12 @@ expected.
 from __future__ import annotations
 
 import copy
-import tomllib
+
 from pathlib import Path
 from typing import Any
 
 from ..errors import InputFileError
+from ..tomlfile import read_toml
 
 __all__ = ["load_scenario", "validate_scenario", "set_dotted", "get_dotted", "SIGNAL_KINDS",
            "IDENTIFIER_KINDS", "OUTPUT_UNITS", "INPUTS", "LAYOUTS"]
@@ -58,12 +59,7 @@ def load_scenario(path: str | Path) -> dict:
     ``rig.name`` may be a shipped rig name or a path relative to the scenario file.
     """
     path = Path(path)
-    if not path.exists():
-        raise InputFileError("scenario file not found", path=path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputFileError(f"not a valid TOML scenario file ({exc})", path=path) from None
+    data = read_toml(path, "scenario")
     rig_name = data.get("rig", {}).get("name") if isinstance(data.get("rig"), dict) else None
     if isinstance(rig_name, str) and rig_name.endswith(".toml") and not Path(rig_name).is_absolute():
         data["rig"]["name"] = str((path.parent / rig_name).resolve())

@@ -34,12 +34,14 @@ import math
 import os
 import time
 import tomllib
+
 import traceback
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputFileError, PneusimError
+from ..tomlfile import read_toml
 from .schema import load_scenario, set_dotted, validate_scenario
 
 __all__ = ["load_sweep", "expand_runs", "run_one", "run_sweep", "build_table", "write_table", "parse_set_items",
@@ -66,12 +68,7 @@ def load_sweep(path) -> dict:
     """Read a sweep file; returns ``{"name", "scenario": spec, "scenario_path", "base", "grid", "random",
     "seeds", "variants"}`` with every varied key checked against the scenario."""
     path = Path(path)
-    if not path.exists():
-        raise InputFileError("sweep file not found", path=path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputFileError(f"not a valid TOML sweep file ({exc})", path=path) from None
+    data = read_toml(path, "sweep")
     unknown = sorted(set(data) - {"sweep", "base", "grid", "random", "points"})
     if unknown:
         raise InputFileError("unknown table; expected sweep, base, grid, random, points", path=path,
