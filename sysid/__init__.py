@@ -11,7 +11,12 @@ from .polynomial import IDPoly, idpoly
 from .arx import ARX, arx
 from .pem import PEM, ARMAX, OE, BJ, armax, oe, bj, pem
 from .recursive import RecursiveARX, RecursiveARMAX, RLSResult, rls
+from .statespace import IDSS
+from .subspace import N4SID, n4sid
+from .tfest import IDTF, TFEst, tfest
 from .predict import predict, simulate, compare, fit_percent
+from .analysis import ResidResult, resid, aic, fpe, bic, struc, arxstruc, selstruc, delayest
+from .convert import to_scipy, to_control, from_scipy, from_control
 
 __all__ = [
     "SysidError",
@@ -20,5 +25,9 @@ __all__ = [
     "ARX", "arx",
     "PEM", "ARMAX", "OE", "BJ", "armax", "oe", "bj", "pem",
     "RecursiveARX", "RecursiveARMAX", "RLSResult", "rls",
+    "IDSS", "N4SID", "n4sid",
+    "IDTF", "TFEst", "tfest",
     "predict", "simulate", "compare", "fit_percent",
+    "ResidResult", "resid", "aic", "fpe", "bic", "struc", "arxstruc", "selstruc", "delayest",
+    "to_scipy", "to_control", "from_scipy", "from_control",
 ]

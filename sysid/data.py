@@ -200,7 +200,8 @@ def load_recording(path, output: str = "position_m", input: str = "valve_cmd_V")
     if header is None:
         raise SysidError(f"{path}: no header row found.")
     cols = {}
-    for name in (output, input):
+    needed = [output, input] + (["time_s"] if "time_s" in header else [])
+    for name in needed:
         if name not in header:
             raise SysidError(f"{path}: required column {name!r} is missing.")
         j = header.index(name)
@@ -214,6 +215,17 @@ def load_recording(path, output: str = "position_m", input: str = "valve_cmd_V")
                 raise SysidError(f"{path}:{lineno}: column {name!r} must be finite, got {v}.")
             vals.append(v)
         cols[name] = np.array(vals)
+    if len(rows) < 50:
+        raise SysidError(f"{path}: a recording must hold at least 50 samples, got {len(rows)}.")
+    if not (np.isfinite(ts) and ts > 0):
+        raise SysidError(f"{path}: metadata 'sample_time_s' must be positive, got {ts}.")
+    if "time_s" in cols:
+        dt = np.diff(cols["time_s"])
+        bad = np.flatnonzero(np.abs(dt - ts) > 1e-6 * ts + 1e-9 * abs(cols["time_s"][1:]).max())
+        if bad.size:
+            i = int(bad[0])
+            raise SysidError(f"{path}:{rows[i + 1][0]}: column 'time_s' must advance by sample_time_s = {ts} s, "
+                             f"got a step of {dt[i]:.9g} s.")
     ounit = output.rsplit("_", 1)[-1] if "_" in output else ""
     iunit = input.rsplit("_", 1)[-1] if "_" in input else ""
     return IDData(cols[output], cols[input], ts, output_name=output, input_name=input,

@@ -127,7 +127,6 @@ def _hannan_rissanen(y, u, na, nb, nc, nk, use_input=True):
     e[n0:] = tgt - Phi @ th
     Phi2, tgt2, n1 = arx_regressors(y, u, na, nb, nk)
     cols = [Phi2]
-    start = n1
     if nc:
         E = np.column_stack([_shift(e, k) for k in range(1, nc + 1)])
         cols.append(E[n1:])

@@ -44,9 +44,13 @@ class N4SID:
         Estimate ``D`` (MATLAB default: no, ``D = 0``).
     max_order : int
         Largest order considered when ``nx`` is None.
+    method : {"shift", "states"}
+        ``A, C`` from the shift invariance of the observability matrix
+        (default, MOESP-like) or by regression on the estimated states.
     """
 
-    def __init__(self, nx=None, horizon=None, feedthrough=False, max_order=10):
+    def __init__(self, nx=None, horizon=None, feedthrough=False, max_order=10, method="shift"):
+        self.method = method
         self.nx = nx
         self.horizon = horizon
         self.feedthrough = feedthrough
@@ -69,17 +73,15 @@ class N4SID:
         Up, Uf = _hankel(u, 0, i, j), _hankel(u, i, i, j)
         Yp, Yf = _hankel(y, 0, i, j), _hankel(y, i, i, j)
         Wp = np.vstack([Up, Yp])
-        # Yf = Lw Wp + Lu Uf  (least squares) -> oblique projection Oi = Lw Wp
-        Z = np.vstack([Wp, Uf]).T
-        coef, *_ = np.linalg.lstsq(Z, Yf.T, rcond=None)
-        Lw = coef[:2 * i].T
-        # weight: Wp projected orthogonally to Uf (MOESP weighting); via its Gram matrix
-        cu, *_ = np.linalg.lstsq(Uf.T, Wp.T, rcond=None)
-        Wperp = Wp - cu.T @ Uf
-        G = Wperp @ Wperp.T / j
-        ev, V = np.linalg.eigh(G)
-        R = V * np.sqrt(np.clip(ev, 0, None))
-        Us, s, _ = np.linalg.svd(Lw @ R)
+        # one QR (= LQ of [Uf; Wp; Yf]); then Yf = L31 Q1 + L32 Q2 + L33 Q3, Wp = L21 Q1 + L22 Q2
+        L = np.linalg.qr(np.vstack([Uf, Wp, Yf]).T, mode="r").T
+        L22 = L[i:3 * i, i:3 * i]
+        L32 = L[3 * i:, i:3 * i]
+        # oblique projection Oi = Yf /_Uf Wp = Lw Wp with Lw = L32 L22^+; weighted by the
+        # projection orthogonal to Uf its column space is that of Lw L22 = L32
+        Lw = L32 @ np.linalg.pinv(L22)
+        Us, s, _ = np.linalg.svd(L32)
+        s = s / np.sqrt(j)
         if self.nx is None:
             k = min(nmax, s.size - 1)
             gaps = np.log(s[:k] + 1e-300) - np.log(s[1:k + 1] + 1e-300)
@@ -92,18 +94,31 @@ class N4SID:
         Xc, Xn = X[:, :-1], X[:, 1:]
         uc = u[i:i + j - 1]
         yc = y[i:i + j - 1]
-        if self.feedthrough:
+        if self.method == "shift":
+            # A and C from the shift invariance of the extended observability matrix
+            A = np.linalg.lstsq(Gam[:-1], Gam[1:], rcond=None)[0]
+            Cm = Gam[:1]
+        elif self.method == "states":
+            # A and C by least squares on consecutive states
             reg = np.vstack([Xc, uc])
+            th = np.linalg.lstsq(reg.T, np.vstack([Xn, yc[None, :]]).T, rcond=None)[0].T
+            A, Cm = th[:nx, :nx], th[nx:, :nx]
         else:
-            reg = Xc
-        th, *_ = np.linalg.lstsq(reg.T, np.vstack([Xn, np.r_[yc][None, :]]).T, rcond=None)
-        th = th.T
-        A = th[:nx, :nx]
-        Cm = th[nx:, :nx]
-        res = np.vstack([Xn, yc[None, :]]) - th @ reg
-        w, v = res[:nx], res[nx:]
-        Svv = float((v @ v.T).item()) / v.shape[1]
-        K = (w @ v.T / v.shape[1]) / Svv
+            raise SysidError(f"method must be 'shift' or 'states', got {self.method!r}.")
+        # input terms of the state and output equations given A, C; residuals -> K
+        Rx = Xn - A @ Xc
+        Ry = yc - (Cm @ Xc).ravel()
+        bs = np.linalg.lstsq(uc[:, None], Rx.T, rcond=None)[0].T
+        w = Rx - bs @ uc[None, :]
+        if self.feedthrough:
+            ds = float(uc @ Ry) / float(uc @ uc)
+            v = Ry - ds * uc
+        else:
+            v = Ry
+        Svv = float(v @ v) / v.size
+        K = (w @ v / v.size / Svv).reshape(nx, 1)
+        if np.any(np.abs(np.linalg.eigvals(A - K @ Cm)) >= 1.0):
+            K = np.zeros((nx, 1))  # keep the predictor stable; fall back to output error
         # B, D, x0 by least squares on the simulated output, given A and C
         B, D = self._input_matrices(A, Cm, y, u)
         model = IDSS(A, B, Cm, D, K, Ts=data.Ts, noise_variance=Svv, singular_values=s,

@@ -42,3 +42,24 @@ def test_load_recording_rejects_missing_column(tmp_path):
     p.write_text("# format: pneusim-recording/1\n# sample_time_s: 0.01\ntime_s,valve_cmd_V\n0,5\n")
     with pytest.raises(sysid.SysidError, match="position_m"):
         sysid.load_recording(p)
+
+
+def test_load_recording_rejects_time_not_matching_sample_time(tmp_path):
+    p = tmp_path / "bad_time.csv"
+    rows = [f"{0.02 * i:.2f},5.0,0.1" for i in range(60)]
+    p.write_text("# format: pneusim-recording/1\n# sample_time_s: 0.01\ntime_s,valve_cmd_V,position_m\n"
+                 + "\n".join(rows) + "\n")
+    with pytest.raises(sysid.SysidError, match="time_s"):
+        sysid.load_recording(p)
+
+
+def test_load_practice_recording_and_identify(real_data_dir):
+    practice = real_data_dir.parent.parent / "practice" / "practice_01.csv"
+    if not practice.is_file():
+        pytest.skip(f"practice recording {practice} is absent")
+    d = sysid.load_recording(practice)
+    assert d.Ts in (0.001, 0.01) and d.N >= 8000
+    assert d.output_unit == "m" and d.input_unit == "V"
+    d = d.detrend()
+    m = sysid.arx(d, [3, 3, 1])
+    assert sysid.compare(d, m, k=1) > 90.0

@@ -1,0 +1,74 @@
+"""Conversion to and from scipy.signal and python-control LTI objects.
+
+Discrete polynomials in ``q^-1`` (MATLAB layout) become z-domain
+numerator/denominator of equal length: ``B(q^-1)/A(q^-1) = (B z^n)/(A z^n)``.
+Only the input-output transfer ``G = B/(A F)`` is converted; the noise model
+is dropped.  Models from scipy/control come back as output-error
+:class:`~sysid.polynomial.IDPoly` (``y = B/F u + e``).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import SysidError
+from .polynomial import IDPoly
+
+__all__ = ["to_scipy", "to_control", "from_scipy", "from_control"]
+
+
+def _z_polys(model):
+    from .predict import as_idpoly
+    if hasattr(model, "to_lti_continuous"):
+        return model.to_lti_continuous()
+    m = as_idpoly(model)
+    num, den = m.G()
+    n = max(num.size, den.size)
+    num = np.r_[num, np.zeros(n - num.size)]
+    den = np.r_[den, np.zeros(n - den.size)]
+    return num, den, m.Ts
+
+
+def to_scipy(model):
+    """``scipy.signal.dlti`` (or ``lti`` for continuous-time IDTF) of the input-output transfer."""
+    from scipy import signal
+    num, den, ts = _z_polys(model)
+    if ts == 0:
+        return signal.lti(num, den)
+    return signal.dlti(np.trim_zeros(num, "f") if np.any(num) else [0.0], den, dt=ts)
+
+
+def to_control(model):
+    """``control.TransferFunction`` of the input-output transfer (``dt = Ts``, or 0)."""
+    import control
+    num, den, ts = _z_polys(model)
+    return control.tf(num, den, ts)
+
+
+def _from_z(num, den, ts):
+    num = np.atleast_1d(np.asarray(num, dtype=float)).ravel()
+    den = np.atleast_1d(np.asarray(den, dtype=float)).ravel()
+    num = np.trim_zeros(num, "f") if np.any(num) else np.zeros(1)
+    den = np.trim_zeros(den, "f")
+    if den.size == 0 or num.size > den.size:
+        raise SysidError("system must be proper (numerator degree <= denominator degree).")
+    if not (ts and ts > 0):
+        raise SysidError(f"system must be discrete-time with a positive sample time, got dt = {ts!r}.")
+    B = np.r_[np.zeros(den.size - num.size), num] / den[0]
+    F = np.trim_zeros(den / den[0], "b")  # trailing q^-1 zeros carry no information
+    nz = np.flatnonzero(B)
+    nk = int(nz[0]) if nz.size else 0
+    B = B[:nz[-1] + 1] if nz.size else B[:1]
+    return IDPoly([1.0], B, F=F, Ts=float(ts), nk=nk, nb=B.size - nk, structure="oe")
+
+
+def from_scipy(sys) -> IDPoly:
+    """Output-error :class:`IDPoly` from a discrete ``scipy.signal`` system."""
+    tf = sys.to_tf() if hasattr(sys, "to_tf") else sys
+    return _from_z(tf.num, tf.den, getattr(tf, "dt", None))
+
+
+def from_control(sys) -> IDPoly:
+    """Output-error :class:`IDPoly` from a discrete SISO ``control`` system."""
+    import control
+    tf = control.tf(sys)
+    return _from_z(tf.num[0][0], tf.den[0][0], tf.dt)

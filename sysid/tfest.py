@@ -1,0 +1,277 @@
+"""Continuous-time transfer-function estimation from sampled data (MATLAB ``tfest``).
+
+Model ``y(t) = B(s)/A(s) u(t - tau) + e(t)`` with ``A(s) = s^np + a_1 s^(np-1) + ... + a_np``
+and ``B(s) = b_0 s^nz + ... + b_nz``; the input is held between samples
+(zero-order hold), the delay ``tau`` is a whole number of samples.
+
+Algorithm:
+
+1. delay (when not given): scan of discrete output-error models (Steiglitz–
+   McBride) over ``0 .. max_delay_samples``, then the best delay and its two
+   neighbours are refined and the one with the smallest final cost is kept;
+2. start: poles of a discrete output-error model mapped by ``s = log(z)/Ts``;
+3. SRIVC (simplified refined instrumental variables, Young & Jakeman 1980;
+   Garnier & Young 2014): signals filtered by ``s^k / A(s)``, instruments from
+   the noise-free model output, a few iterations;
+4. prediction-error refinement of the simulation error (output-error noise
+   model) by Levenberg–Marquardt (``scipy.optimize.least_squares``) on the
+   exact zero-order-hold discretisation; covariance ``sigma^2 (J^T J)^-1``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.signal import cont2discrete, lfilter
+
+from ._checks import check_data, check_enough_data, check_order
+from .data import IDData
+from .errors import SysidError
+from .polynomial import IDPoly
+
+__all__ = ["IDTF", "TFEst", "tfest"]
+
+
+@dataclass
+class IDTF:
+    """Continuous-time transfer function ``num(s)/den(s) e^{-s iodelay}``.
+
+    Attributes
+    ----------
+    num : ndarray, shape (nz+1,)
+        Numerator coefficients, highest power of ``s`` first.
+    den : ndarray, shape (np+1,)
+        Monic denominator, highest power first.
+    iodelay : float
+        Input delay in seconds.
+    Ts : float
+        Sample time (s) of the data; used to evaluate the model on sampled data (ZOH).
+    covariance : ndarray or None, shape (d, d)
+        Covariance of ``[a_1..a_np, b_0..b_nz]`` (:attr:`parameters`).
+    noise_variance : float
+        Variance of the output error.
+    """
+
+    num: np.ndarray
+    den: np.ndarray
+    iodelay: float = 0.0
+    Ts: float = 1.0
+    covariance: np.ndarray | None = None
+    noise_variance: float = 0.0
+    loss: float = float("nan")
+    n_samples: int = 0
+    report: dict = field(default_factory=dict)
+
+    @property
+    def parameters(self) -> np.ndarray:
+        """``[a_1..a_np, b_0..b_nz]``, shape (d,)."""
+        return np.r_[self.den[1:], self.num]
+
+    @property
+    def n_parameters(self) -> int:
+        return self.den.size - 1 + self.num.size
+
+    @property
+    def std(self) -> np.ndarray | None:
+        """Standard deviations of :attr:`parameters`."""
+        return None if self.covariance is None else np.sqrt(np.clip(np.diag(self.covariance), 0, None))
+
+    @property
+    def delay_samples(self) -> int:
+        return int(round(self.iodelay / self.Ts))
+
+    def to_idpoly(self) -> IDPoly:
+        """Zero-order-hold equivalent output-error model ``B(q)/F(q)`` with the delay in ``nk``."""
+        return _discretise(self.num, self.den, self.Ts, self.delay_samples)
+
+    def to_lti_continuous(self):
+        """(num, den, 0) for :mod:`sysid.convert` (the delay is not represented)."""
+        return self.num.copy(), self.den.copy(), 0
+
+    def poles(self) -> np.ndarray:
+        """Poles in the s-plane (rad/s)."""
+        return np.roots(self.den)
+
+    def zeros(self) -> np.ndarray:
+        """Zeros in the s-plane (rad/s)."""
+        return np.roots(np.trim_zeros(self.num, "f")) if self.num.size > 1 else np.zeros(0)
+
+    def freqresp(self, omega) -> np.ndarray:
+        """``G(j omega) e^{-j omega iodelay}`` at ``omega`` in rad/s."""
+        s = 1j * np.asarray(omega, dtype=float)
+        return np.polyval(self.num, s) / np.polyval(self.den, s) * np.exp(-s * self.iodelay)
+
+    def dcgain(self) -> float:
+        """Static gain ``b_nz / a_np``."""
+        return float(self.num[-1] / self.den[-1])
+
+
+def _discretise(num, den, Ts, d) -> IDPoly:
+    numd, dend, _ = cont2discrete((np.asarray(num, float), np.asarray(den, float)), Ts, method="zoh")
+    numd = np.ravel(numd)
+    numd = np.r_[np.zeros(dend.size - numd.size), numd]
+    numd[0] = 0.0  # strictly proper (ZOH of a proper CT system with nz < np)
+    B = np.r_[np.zeros(d), numd]
+    return IDPoly([1.0], B, F=dend, Ts=Ts, nk=d + 1, nb=B.size - d - 1, structure="oe")
+
+
+def _filter(sig, k, den, Ts, method):
+    """Sampled ``s^k / den(s)`` applied to ``sig``."""
+    num = np.zeros(den.size - k)
+    num[0] = 1.0
+    bd, ad, _ = cont2discrete((num, den), Ts, method=method)
+    return lfilter(np.ravel(bd), ad, sig)
+
+
+def _srivc(y, u, den, n, m, Ts, iterations):
+    """SRIVC iterations from the denominator ``den``; returns (den, num)."""
+    # numerator for the starting denominator: y ~ sum_j b_j s^(m-j)/den u (linear LS)
+    uphi = [_filter(u, k, den, Ts, "zoh") for k in range(m, -1, -1)]
+    num = np.linalg.lstsq(np.column_stack(uphi), y, rcond=None)[0]
+    start = (den.copy(), num.copy())
+    th = None
+    for it in range(iterations):
+        if it:
+            uphi = [_filter(u, k, den, Ts, "zoh") for k in range(m, -1, -1)]
+        ycols = [_filter(y, k, den, Ts, "bilinear") for k in range(n + 1)]
+        phi = np.column_stack([-ycols[k] for k in range(n - 1, -1, -1)] + uphi)
+        x = lfilter(*_zoh_ba(num, den, Ts), u)  # instruments: noise-free model output
+        xcols = [_filter(x, k, den, Ts, "bilinear") for k in range(n)]
+        zeta = np.column_stack([-xcols[k] for k in range(n - 1, -1, -1)] + uphi)
+        try:
+            th = np.linalg.solve(zeta.T @ phi, zeta.T @ ycols[n])
+        except np.linalg.LinAlgError:
+            break
+        new_den = np.r_[1.0, th[:n]]
+        if np.any(np.roots(new_den).real >= 0):
+            break
+        den, num = new_den, th[n:]
+    return (den, num), start
+
+
+def _zoh_ba(num, den, Ts):
+    p = _discretise(num, den, Ts, 0)
+    return p.B, p.F
+
+
+class TFEst:
+    """Continuous-time transfer-function estimator: ``TFEst(np, nz, iodelay).fit(data)``.
+
+    Parameters
+    ----------
+    n_poles : int
+        Number of poles ``np >= 1``.
+    n_zeros : int
+        Number of zeros ``0 <= nz < np``.
+    iodelay : float or None
+        Input delay in seconds (rounded to whole samples); ``None`` estimates it.
+    max_delay_samples : int
+        Largest delay tried when estimating it.
+    srivc_iterations : int
+        SRIVC iterations before the prediction-error refinement.
+    """
+
+    def __init__(self, n_poles, n_zeros=0, iodelay=None, max_delay_samples=20, srivc_iterations=6):
+        self.n_poles = n_poles
+        self.n_zeros = n_zeros
+        self.iodelay = iodelay
+        self.max_delay_samples = max_delay_samples
+        self.srivc_iterations = srivc_iterations
+
+    def _scan_delay(self, data, n):
+        """Delay (samples) of the discrete OE model [nb=np nf=np nk=1+d] with least simulation error."""
+        from .pem import _steiglitz_mcbride
+        best, best_d = np.inf, 0
+        dmax = check_order(self.max_delay_samples, "max_delay_samples")
+        y = data.y[dmax:]
+        for d in range(dmax + 1):
+            B, F = _steiglitz_mcbride(data.y, data.u, n, n, 1 + d, iterations=4)
+            e = y - lfilter(B, F, data.u)[dmax:]
+            cost = float(e @ e)
+            if cost < best:
+                best, best_d = cost, d
+        return best_d
+
+    def _fit_delay(self, data, d):
+        n, m, Ts = self.n_poles, self.n_zeros, data.Ts
+        y, u = data.y, np.r_[np.zeros(d), data.u[:data.N - d]]
+        from .pem import _steiglitz_mcbride
+        _, F = _steiglitz_mcbride(y, u, n, n, 1)
+        zp = np.roots(F) if F.size > 1 else np.zeros(0)
+        sp = np.log(np.clip(np.abs(zp), 1e-6, 0.999999)) / Ts + 1j * np.angle(zp) / Ts
+        sp = np.where(np.abs(np.angle(zp)) > 3.1, np.log(np.clip(np.abs(zp), 1e-6, 0.9999)) / Ts, sp)
+        den = np.real(np.poly(sp)) if sp.size == n else np.real(np.poly(-np.ones(n) / Ts / 10))
+        (den, num), (den0, num0) = _srivc(y, u, den, n, m, Ts, self.srivc_iterations)
+
+        big = 1e3 * (np.abs(y) + np.std(y) + 1.0)
+
+        def res(th):
+            den_ = np.r_[1.0, th[:n]]
+            if np.any(den_ <= 0) or np.any(np.roots(den_).real >= 0):
+                return big  # unstable candidate: rejected by the trust region
+            p = _discretise(th[n:], den_, Ts, 0)
+            return y - lfilter(p.B, p.F, u)
+
+        sol = least_squares(res, np.r_[den[1:], num], method="lm", x_scale="jac")
+        x_start = np.r_[den0[1:], num0]
+        r0 = res(x_start)
+        if float(sol.fun @ sol.fun) > float(r0 @ r0):  # SRIVC went astray: restart from the OE start
+            sol = least_squares(res, x_start, method="lm", x_scale="jac")
+        return sol
+
+    def fit(self, data: IDData) -> IDTF:
+        """Estimate; sets ``model_`` and returns an :class:`IDTF`."""
+        data = check_data(data)
+        n = check_order(self.n_poles, "np", 1)
+        m = check_order(self.n_zeros, "nz")
+        if m >= n:
+            raise SysidError(f"nz must be smaller than np = {n} (proper, strictly), got {m}.")
+        check_enough_data(data.N - self.max_delay_samples, n + m + 1, f"tfest with {n} poles and {m} zeros")
+        Ts = data.Ts
+        if self.iodelay is None:
+            d0 = self._scan_delay(data, n)
+            candidates = sorted({max(d0 - 1, 0), d0, d0 + 1})
+        else:
+            if not (np.isfinite(self.iodelay) and self.iodelay >= 0):
+                raise SysidError(f"iodelay must be a non-negative number of seconds or None, got {self.iodelay!r}.")
+            candidates = [int(round(self.iodelay / Ts))]
+        best = None
+        for d in candidates:
+            sol = self._fit_delay(data, d)
+            cost = float(sol.fun @ sol.fun)
+            if best is None or cost < best[0]:
+                best = (cost, d, sol)
+        cost, d, sol = best
+        N, dpar = data.N, n + m + 1
+        lam = cost / max(N - dpar, 1)
+        J = sol.jac
+        try:
+            cov = lam * np.linalg.inv(J.T @ J)
+        except np.linalg.LinAlgError:
+            cov = None
+        model = IDTF(sol.x[n:].copy(), np.r_[1.0, sol.x[:n]], iodelay=d * Ts, Ts=Ts, covariance=cov,
+                     noise_variance=lam, loss=cost / N, n_samples=N,
+                     report=dict(nfev=sol.nfev, delay_candidates=candidates))
+        self.model_ = model
+        return model
+
+
+def tfest(data: IDData, np, nz=0, iodelay=None) -> IDTF:  # noqa: F811 (MATLAB name)
+    """MATLAB ``tfest(data, np, nz, iodelay)``: continuous-time transfer function.
+
+    Parameters
+    ----------
+    data : IDData
+    np : int
+        Number of poles (MATLAB's argument name; shadows numpy only in here).
+    nz : int
+        Number of zeros (``< np``).
+    iodelay : float or None
+        Input delay in seconds; ``None`` (default) estimates it.
+
+    Returns
+    -------
+    IDTF
+    """
+    return TFEst(np, nz, iodelay).fit(data)
