@@ -1,4 +1,6 @@
-"""Which parameters a fit frees, their scales (typical values) and physical bounds.
+"""Work in progress (issue 5, not wired to the command line or tested yet).
+
+Which parameters a fit frees, their scales (typical values) and physical bounds.
 
 A free parameter enters the optimiser as ``theta = value / scale`` so that
 every decision variable is of order one.  Bounds are physical: positive where
