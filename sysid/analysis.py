@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._blas import one_blas_thread
 from ._checks import check_data, check_order
 from .arx import ARX, arx_regressors, _qr_lstsq
 from .data import IDData
@@ -120,7 +121,7 @@ def _loss_terms(model, data):
 def _n_params(model):
     n = getattr(model, "n_parameters", None)
     if n is None:
-        raise SysidError(f"model must be an estimated IDPoly or IDTF, got {type(model).__name__}.")
+        raise SysidError(f"model must be an estimated IDPoly, IDSS or IDTF, got {type(model).__name__}.")
     return n
 
 
@@ -148,6 +149,7 @@ def struc(na_range, nb_range, nk_range) -> np.ndarray:
     return np.array(list(itertools.product(na_range, nb_range, nk_range)), dtype=int)
 
 
+@one_blas_thread
 def arxstruc(estimation: IDData, validation: IDData, orders) -> np.ndarray:
     """Loss of ARX models over a grid (MATLAB ``arxstruc``).
 
@@ -169,7 +171,7 @@ def arxstruc(estimation: IDData, validation: IDData, orders) -> np.ndarray:
         raise SysidError(f"orders must have rows [na, nb, nk], got shape {orders.shape}.")
     rows = []
     for na, nb, nk in orders.tolist():
-        m = ARX(int(na), int(nb), int(nk)).fit(estimation)
+        m = ARX(int(na), int(nb), int(nk))._fit(estimation, strict=False)  # a grid may hold degenerate orders
         Phi, tgt, _ = arx_regressors(validation.y, validation.u, int(na), int(nb), int(nk))
         r = tgt - Phi @ m.parameters
         rows.append([float(r @ r) / r.size, na, nb, nk, r.size])
@@ -200,6 +202,7 @@ def selstruc(table: np.ndarray, criterion: str = "val") -> list[int]:
     return [int(t[i, 1]), int(t[i, 2]), int(t[i, 3])]
 
 
+@one_blas_thread
 def delayest(data: IDData, na: int = 2, nb: int = 2, nk_min: int = 0, nk_max: int = 10) -> int:
     """Input delay in samples: the ``nk`` of the best-fitting ARX[na nb nk] (MATLAB ``delayest``).
 

@@ -8,10 +8,11 @@ regressor is measured (no assumption about data before the record).
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import solve_triangular
 
+from ._blas import one_blas_thread
 from ._checks import check_data, check_enough_data, check_order, check_orders
 from .data import IDData
+from .errors import SysidError
 from .polynomial import IDPoly
 
 __all__ = ["ARX", "arx", "arx_regressors"]
@@ -40,13 +41,48 @@ def arx_regressors(y: np.ndarray, u: np.ndarray, na: int, nb: int, nk: int):
     return Phi, y[n:], n
 
 
-def _qr_lstsq(Phi: np.ndarray, target: np.ndarray):
-    """Least squares by QR of ``[Phi, target]``: returns theta, RSS, R (upper-triangular)."""
+def _qr_lstsq(Phi: np.ndarray, target: np.ndarray, what: str | None = None):
+    """Least squares by QR of ``[Phi, target]``.
+
+    Parameters
+    ----------
+    Phi : ndarray, shape (n, d)
+    target : ndarray, shape (n,)
+    what : str or None
+        Name of the model for the error message.  When given, a rank-deficient
+        ``Phi`` raises :class:`SysidError`; otherwise the minimum-norm solution
+        is returned (internal start-value computations).
+
+    Returns
+    -------
+    theta : ndarray, shape (d,)
+    rss : float
+        Residual sum of squares.
+    R11 : ndarray, shape (d, d)
+        Upper-triangular factor of ``Phi``.
+
+    Notes
+    -----
+    Only numpy's LAPACK is used: alternating between numpy's and scipy's
+    OpenBLAS builds makes the idle thread pool of one spin against the other
+    (milliseconds per switch on a busy machine).
+    """
     d = Phi.shape[1]
     R = np.linalg.qr(np.column_stack([Phi, target]), mode="r")
     R11 = R[:d, :d]
-    theta = solve_triangular(R11, R[:d, d])
     rss = float(R[d, d] ** 2) if R.shape[0] > d else 0.0
+    # column i is (numerically) a combination of columns 0..i-1 when |R_ii| << |Phi_i|
+    colnorm = np.sqrt(np.einsum("ij,ij->j", Phi, Phi))
+    tol = max(Phi.shape) * np.finfo(float).eps
+    bad = np.flatnonzero(np.abs(np.diag(R11)) <= tol * np.maximum(colnorm, np.finfo(float).tiny))
+    if bad.size:
+        if what is not None:
+            raise SysidError(
+                f"the data cannot support {what}: regressor {int(bad[0]) + 1} of {d} is a linear combination "
+                f"of the others (input not persistently exciting, or orders too high for noise-free data).")
+        theta = np.linalg.lstsq(R11, R[:d, d], rcond=None)[0]
+        return theta, rss, R11
+    theta = np.linalg.solve(R11, R[:d, d])
     return theta, rss, R11
 
 
@@ -69,22 +105,32 @@ class ARX:
         self.nk = nk
 
     def fit(self, data: IDData) -> IDPoly:
-        """Estimate the model from ``data``; sets ``model_`` and returns it."""
+        """Estimate the model from ``data``; sets ``model_`` and returns it.
+
+        Raises :class:`SysidError` when the data cannot determine the parameters
+        (rank-deficient regressors).
+        """
+        return self._fit(data, strict=True)
+
+    @one_blas_thread
+    def _fit(self, data: IDData, strict: bool) -> IDPoly:
         data = check_data(data)
         na = check_order(self.na, "na")
         nb = check_order(self.nb, "nb")
         nk = check_order(self.nk, "nk")
         if na + nb == 0:
-            from .errors import SysidError
             raise SysidError("na + nb must be at least 1, got na = nb = 0.")
         n = max(na, nk + nb - 1, 0)
         check_enough_data(data.N - n, na + nb, f"ARX[{na} {nb} {nk}]")
         Phi, target, n = arx_regressors(data.y, data.u, na, nb, nk)
-        theta, rss, R11 = _qr_lstsq(Phi, target)
+        theta, rss, R11 = _qr_lstsq(Phi, target, what=f"ARX[{na} {nb} {nk}]" if strict else None)
         neff, d = target.size, na + nb
         lam = rss / max(neff - d, 1)
-        Rinv = solve_triangular(R11, np.eye(d))
-        cov = lam * (Rinv @ Rinv.T)
+        try:
+            Rinv = np.linalg.inv(R11)
+            cov = lam * (Rinv @ Rinv.T)
+        except np.linalg.LinAlgError:  # only without strict: singular regressors
+            cov = np.full((d, d), np.inf)
         B = np.zeros(nk + nb)
         B[nk:] = theta[na:]
         model = IDPoly(np.r_[1.0, theta[:na]], B, Ts=data.Ts, nk=nk, nb=nb,

@@ -5,22 +5,20 @@ Only single-input single-output records are supported.  Signals are stored as
 """
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 
 from .errors import SysidError
 
-__all__ = ["IDData", "iddata", "detrend", "load_recording"]
+__all__ = ["IDData", "iddata", "detrend"]
 
 
 def _as_signal(x, name: str) -> np.ndarray:
     try:
         a = np.asarray(x, dtype=float)
     except (TypeError, ValueError):
-        raise SysidError(f"{name} must be a numeric 1-D array.") from None
+        raise SysidError(f"{name} must be a numeric 1-D array, got {type(x).__name__}.") from None
     if a.ndim == 2 and 1 in a.shape:
         a = a.reshape(-1)
     if a.ndim != 1:
@@ -149,84 +147,3 @@ def detrend(data: IDData, order: int = 0) -> IDData:
     from scipy.signal import detrend as _dt
     kind = "constant" if order == 0 else "linear"
     return replace(data, y=_dt(data.y, type=kind), u=_dt(data.u, type=kind))
-
-
-def load_recording(path, output: str = "position_m", input: str = "valve_cmd_V") -> IDData:
-    """Load a ``pneusim-recording/1`` CSV file as :class:`IDData`.
-
-    Parameters
-    ----------
-    path : str or Path
-        CSV with ``# key: value`` metadata lines, one header row, numeric rows.
-    output, input : str
-        Column names used as output (default ``position_m``, m) and input
-        (default ``valve_cmd_V``, V).
-
-    Returns
-    -------
-    IDData
-        ``Ts`` from ``# sample_time_s:``; the other metadata in ``metadata``.
-    """
-    path = Path(path)
-    meta: dict[str, str] = {}
-    rows: list[list[str]] = []
-    header = None
-    with path.open(newline="", encoding="utf-8") as fh:
-        for lineno, line in enumerate(fh, start=1):
-            s = line.strip()
-            if not s:
-                continue
-            if header is None and s.startswith("#"):
-                key, sep, value = s[1:].partition(":")
-                if not sep:
-                    raise SysidError(f"{path}:{lineno}: metadata line must read '# key: value'.")
-                meta[key.strip().lower()] = value.strip()
-                continue
-            cells = next(csv.reader([s]))
-            if header is None:
-                header = [c.strip() for c in cells]
-                if len(set(header)) != len(header):
-                    raise SysidError(f"{path}:{lineno}: header has a duplicated column name.")
-            else:
-                rows.append((lineno, cells))
-    if meta.get("format") != "pneusim-recording/1":
-        raise SysidError(f"{path}: metadata 'format' must be 'pneusim-recording/1', got {meta.get('format')!r}.")
-    if "sample_time_s" not in meta:
-        raise SysidError(f"{path}: metadata 'sample_time_s' is required.")
-    try:
-        ts = float(meta["sample_time_s"])
-    except ValueError:
-        raise SysidError(f"{path}: metadata 'sample_time_s' must be a number, got {meta['sample_time_s']!r}.") from None
-    if header is None:
-        raise SysidError(f"{path}: no header row found.")
-    cols = {}
-    needed = [output, input] + (["time_s"] if "time_s" in header else [])
-    for name in needed:
-        if name not in header:
-            raise SysidError(f"{path}: required column {name!r} is missing.")
-        j = header.index(name)
-        vals = []
-        for lineno, cells in rows:
-            try:
-                v = float(cells[j])
-            except (ValueError, IndexError):
-                raise SysidError(f"{path}:{lineno}: column {name!r} must hold a number.") from None
-            if not np.isfinite(v):
-                raise SysidError(f"{path}:{lineno}: column {name!r} must be finite, got {v}.")
-            vals.append(v)
-        cols[name] = np.array(vals)
-    if len(rows) < 50:
-        raise SysidError(f"{path}: a recording must hold at least 50 samples, got {len(rows)}.")
-    if not (np.isfinite(ts) and ts > 0):
-        raise SysidError(f"{path}: metadata 'sample_time_s' must be positive, got {ts}.")
-    if "time_s" in cols:
-        dt = np.diff(cols["time_s"])
-        bad = np.flatnonzero(np.abs(dt - ts) > 1e-6 * ts + 1e-9 * abs(cols["time_s"][1:]).max())
-        if bad.size:
-            i = int(bad[0])
-            raise SysidError(f"{path}:{rows[i + 1][0]}: column 'time_s' must advance by sample_time_s = {ts} s, "
-                             f"got a step of {dt[i]:.9g} s.")
-    ounit = output.rsplit("_", 1)[-1] if "_" in output else ""
-    iunit = input.rsplit("_", 1)[-1] if "_" in input else ""
-    return IDData(cols[output], cols[input], ts, output_name=output, input_name=input,
-                  output_unit=ounit, input_unit=iunit, metadata=meta)

@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import lfilter
 
+from ._blas import one_blas_thread
 from ._checks import check_data, check_enough_data, check_order, check_orders
 from .arx import _qr_lstsq, arx_regressors
 from .data import IDData
@@ -207,6 +208,7 @@ class PEM:
         A, B, C = _hannan_rissanen(y, u, na, nb, nc, nk)
         return IDPoly(A, B, C, Ts=data.Ts, nk=nk, nb=nb)
 
+    @one_blas_thread
     def fit(self, data: IDData) -> IDPoly:
         """Estimate the model; sets ``model_`` and returns it (an :class:`IDPoly`)."""
         data = check_data(data)

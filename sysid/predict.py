@@ -71,9 +71,16 @@ def simulate(model, data_or_u, initial: str = "zero") -> np.ndarray:
     if isinstance(data_or_u, IDData):
         u = data_or_u.u
     else:
-        u = np.asarray(data_or_u, dtype=float).ravel()
+        try:
+            u = np.asarray(data_or_u, dtype=float)
+        except (TypeError, ValueError):
+            raise SysidError(f"u must be an IDData or a numeric 1-D array, got {type(data_or_u).__name__}.") from None
+        if u.ndim > 1 and u.size != max(u.shape):
+            raise SysidError(f"u must be a 1-D array (single input), got shape {u.shape}.")
+        u = u.ravel()
         if not np.all(np.isfinite(u)):
-            raise SysidError("u must be finite.")
+            i = int(np.flatnonzero(~np.isfinite(u))[0])
+            raise SysidError(f"u must be finite, but sample {i} is {u[i]}.")
     num, den = m.G()
     ys = lfilter(num, den, u)
     if initial == "zero":
@@ -111,7 +118,11 @@ def predict(model, data: IDData, k=1) -> np.ndarray:
     data = check_data(data)
     if k == math.inf or k is None:
         return simulate(model, data)
-    if isinstance(k, bool) or not float(k).is_integer() or k < 1:
+    try:
+        ok = not isinstance(k, bool) and float(k).is_integer() and k >= 1
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
         raise SysidError(f"k must be an integer >= 1 or math.inf, got {k!r}.")
     k = int(k)
     m = as_idpoly(model)

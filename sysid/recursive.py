@@ -12,6 +12,13 @@ with ``P(0) = c I``, forgetting factor ``lambda`` and regressor
 For ARMAX (``nc > 0``) ``e`` are the a-posteriori residuals
 ``y(t) - psi^T theta(t)`` (extended least squares, Ljung 1999 sec. 11.7).
 
+Uncertainty: the exponentially weighted loss ``V(t) = lambda V(t-1) + eps(t) epsbar(t)``
+(``epsbar`` the a-posteriori residual) is kept alongside; with
+``Neff = sum_k lambda^k`` and ``f = (1 + lambda^t)/(1 + lambda)`` the noise
+variance is ``sigma^2 = V / (Neff - d f)`` and ``cov(theta) = sigma^2 f P``
+(exact least-squares covariance for ``lambda = 1``; for ``lambda < 1`` under
+stationary regressors).
+
 Implementation note: to keep one ``update`` to a handful of BLAS calls,
 ``theta`` and ``Q = lambda^t P`` are stored side by side in one Fortran
 array ``M = [Q | theta]`` and updated with a single rank-one ``dger`` call;
@@ -46,7 +53,10 @@ class RecursiveARX:
         Forgetting factor ``lambda`` in (0, 1]; the memory is about
         ``1 / (1 - lambda)`` samples.
     initial_covariance : float
-        ``c`` in ``P(0) = c I`` (> 0; the paper uses 100 < c < 10 000).
+        ``c`` in ``P(0) = c I`` (> 0; the paper uses 100 < c < 10 000).  It acts as a
+        prior ``|theta|^2 / c`` that is forgotten like old data; with ``forgetting = 1``
+        it never fades and biases ``theta`` by about ``P theta / c``, so use a large
+        ``c`` (e.g. 1e8) without forgetting.
     initial_parameters : array_like, shape (d,), optional
         ``theta(0)``; zeros by default.
     Ts : float
@@ -90,6 +100,7 @@ class RecursiveARX:
                 raise SysidError(f"initial_parameters must have {d} entries, got {th.size}.")
             self._M[:, d] = th
         self._s = 1.0
+        self._V = 0.0
         self._psi = np.zeros(d)
         self._MT = self._M.T
         self._udelay = deque([0.0] * nk)  # u(t-1) .. u(t-nk), most recent first
@@ -106,6 +117,9 @@ class RecursiveARX:
         u : float
             Input at time t (used now if ``nk = 0``, otherwise delayed).
         """
+        if y - y != 0.0 or u - u != 0.0:  # NaN or +-inf, checked before any state changes
+            raise SysidError(f"update needs finite y and u, got y = {y!r}, u = {u!r} "
+                             f"(sample {self.n_updates}); the estimate is unchanged.")
         psi = self._psi
         na, nb = self.na, self.nb
         # input part of the regressor: u(t-nk) becomes the newest entry
@@ -126,7 +140,10 @@ class RecursiveARX:
         eps = y - v[d]
         v[d] = -eps
         dger(-1.0 / den, k, v, a=M, overwrite_a=1)
-        s *= self.forgetting
+        lam = self.forgetting
+        s *= lam
+        post = eps * s / den               # a-posteriori residual y - psi^T theta(t)
+        self._V = lam * self._V + eps * post
         n = self.n_updates + 1
         self.n_updates = n
         if not n & 7:
@@ -149,7 +166,7 @@ class RecursiveARX:
             j = na + nb
             if nc > 1:
                 psi[j + 1:j + nc] = psi[j:j + nc - 1]
-            psi[j] = eps * s / den      # a-posteriori residual
+            psi[j] = post
         return float(eps)
 
     def partial_fit(self, data: IDData) -> "RecursiveARX":
@@ -170,14 +187,43 @@ class RecursiveARX:
         """Current ``P`` matrix, shape (d, d) (a copy)."""
         return self._M[:, :self.d] / self._s
 
+    def _weights(self):
+        """``(Neff, f)``: effective number of samples and ``(1 + lambda^t)/(1 + lambda)``."""
+        lam, n = self.forgetting, self.n_updates
+        if lam == 1.0:
+            return float(n), 1.0
+        lt = lam ** n
+        return (1.0 - lt) / (1.0 - lam), (1.0 + lt) / (1.0 + lam)
+
+    @property
+    def noise_variance(self) -> float:
+        """Estimated innovation variance ``V / (Neff - d f)`` (output units squared; NaN until ``Neff > d f``)."""
+        neff, f = self._weights()
+        dof = neff - self.d * f
+        return self._V / dof if dof > 0 else float("nan")
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """Estimated covariance of :attr:`parameters`, ``sigma^2 f P``, shape (d, d)."""
+        _, f = self._weights()
+        return self.noise_variance * f * self.P
+
+    @property
+    def std(self) -> np.ndarray:
+        """Standard deviations of :attr:`parameters`, shape (d,)."""
+        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+
     def to_idpoly(self) -> IDPoly:
-        """Current estimate as an :class:`IDPoly` (ARX or ARMAX)."""
+        """Current estimate as an :class:`IDPoly` (ARX or ARMAX) with its covariance."""
         th = self.parameters
         na, nb, nc, nk = self.na, self.nb, self.nc, self.nk
         B = np.zeros(nk + nb)
         B[nk:] = th[na:na + nb]
+        sigma2 = self.noise_variance
+        ok = np.isfinite(sigma2)
         return IDPoly(np.r_[1.0, th[:na]], B, np.r_[1.0, th[na + nb:]], Ts=self.Ts, nk=nk, nb=nb,
-                      structure="armax" if nc else "arx")
+                      structure="armax" if nc else "arx", noise_variance=sigma2 if ok else 0.0,
+                      covariance=self.covariance if ok else None, n_samples=self.n_updates)
 
 
 RecursiveARMAX = RecursiveARX
@@ -196,7 +242,11 @@ class RLSResult:
     errors_ : ndarray, shape (N,)
         Prior (one-step) prediction errors.
     model_ : IDPoly
-        Final estimate as a polynomial model.
+        Final estimate as a polynomial model (with ``covariance``).
+    noise_variance : float
+        Estimated innovation variance (see :attr:`RecursiveARX.noise_variance`).
+    std : ndarray, shape (d,)
+        Standard deviations of ``theta_`` (see :attr:`RecursiveARX.covariance`).
     estimator_ : RecursiveARX
         The estimator, ready to continue online with ``update``.
     """
@@ -208,6 +258,9 @@ class RLSResult:
         self.errors_ = errors
         self.theta_ = history[-1].copy()
         self.model_ = estimator.to_idpoly()
+        self.noise_variance = estimator.noise_variance
+        self.covariance = estimator.covariance
+        self.std = estimator.std
 
     @property
     def model(self) -> IDPoly:

@@ -1,6 +1,12 @@
 """Discrete-time innovations state-space model (MATLAB ``idss``).
 
 ``x(t+1) = A x(t) + B u(t) + K e(t)``,  ``y(t) = C x(t) + D u(t) + e(t)``.
+
+A state-space realisation is defined only up to a change of state basis, so
+the parameters that carry an uncertainty are those of the equivalent ARMAX
+form ``det(qI - A) y = B(q) u + C(q) e`` (:meth:`IDSS.to_idpoly`), which do
+not depend on the basis: :attr:`IDSS.parameters` and :attr:`IDSS.covariance`
+refer to them.
 """
 from __future__ import annotations
 
@@ -9,9 +15,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import ss2tf
 
+from .errors import SysidError
 from .polynomial import IDPoly
 
-__all__ = ["IDSS"]
+__all__ = ["IDSS", "idss_from_armax"]
 
 
 @dataclass
@@ -29,9 +36,15 @@ class IDSS:
     Ts : float
         Sample time in seconds.
     noise_variance : float
-        Variance of ``e``.
+        Variance of ``e`` (output units squared).
     singular_values : ndarray or None
         Singular values used to choose the order (subspace estimation).
+    covariance : ndarray or None, shape (d, d)
+        Covariance of :attr:`parameters` (the ARMAX-equivalent coefficients).
+    loss : float
+        Mean squared one-step prediction error on the estimation data.
+    n_samples : int
+        Number of estimation samples.
     """
 
     A: np.ndarray
@@ -43,6 +56,9 @@ class IDSS:
     noise_variance: float = 0.0
     singular_values: np.ndarray | None = None
     report: dict = field(default_factory=dict)
+    covariance: np.ndarray | None = None
+    loss: float = float("nan")
+    n_samples: int = 0
 
     @property
     def nx(self) -> int:
@@ -59,7 +75,24 @@ class IDSS:
         nk = 0 if numG[0] != 0.0 else 1
         numH = numH / numH[0]
         return IDPoly(den, numG, numH, Ts=self.Ts, nk=nk, nb=numG.size - nk,
-                      noise_variance=self.noise_variance, structure="armax")
+                      noise_variance=self.noise_variance, structure="armax", covariance=self.covariance)
+
+    @property
+    def parameters(self) -> np.ndarray:
+        """Basis-independent parameters ``[a_1..a_nx, b_nk.., c_1..c_nx]`` of :meth:`to_idpoly`, shape (d,)."""
+        return self.to_idpoly().parameters
+
+    @property
+    def n_parameters(self) -> int:
+        """Number of identifiable parameters, ``3 nx`` (+1 with feedthrough)."""
+        return self.to_idpoly().n_parameters
+
+    @property
+    def std(self) -> np.ndarray | None:
+        """Standard deviations of :attr:`parameters` (None when no covariance)."""
+        if self.covariance is None:
+            return None
+        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
 
     def poles(self) -> np.ndarray:
         """Eigenvalues of ``A`` (z-plane)."""
@@ -72,3 +105,39 @@ class IDSS:
     def freqresp(self, omega) -> np.ndarray:
         """``G(e^{j omega Ts})`` at ``omega`` in rad/s."""
         return self.to_idpoly().freqresp(omega)
+
+
+def idss_from_armax(p: IDPoly, **attributes) -> IDSS:
+    """Observer-canonical :class:`IDSS` of an ARMAX model ``A y = B u + C e``.
+
+    With ``n = max(na, nb + nk - 1, nc)`` and coefficients padded with zeros::
+
+        A_ss = [[-a_1, 1, 0 ..], [-a_2, 0, 1 ..], .., [-a_n, 0 .. 0]]
+        B_ss = b_{1..n} - a_{1..n} b_0,  D = b_0,  K = c_{1..n} - a_{1..n},  C_ss = [1, 0 .. 0]
+
+    Parameters
+    ----------
+    p : IDPoly
+        Model with ``D = F = 1``.
+    **attributes
+        Passed to :class:`IDSS` (``noise_variance``, ``covariance``, ...).
+    """
+    if p.nd or p.nf:
+        raise SysidError(f"model must be ARMAX (D = F = 1) for a state-space form, got nd={p.nd}, nf={p.nf}.")
+    n = max(p.na, p.B.size - 1, p.nc)
+    if n == 0:
+        raise SysidError("model must have at least one state (na, nb + nk - 1 or nc >= 1).")
+
+    def pad(x):
+        out = np.zeros(n + 1)
+        out[:x.size] = x
+        return out
+
+    a, b, c = pad(p.A), pad(p.B), pad(p.C)
+    A = np.zeros((n, n))
+    A[:, 0] = -a[1:]
+    A[:-1, 1:] = np.eye(n - 1)
+    C = np.zeros((1, n))
+    C[0, 0] = 1.0
+    return IDSS(A, (b[1:] - a[1:] * b[0]).reshape(n, 1), C, np.array([[b[0]]]),
+                (c[1:] - a[1:]).reshape(n, 1), Ts=p.Ts, **attributes)

@@ -25,6 +25,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import cont2discrete, lfilter
 
+from ._blas import one_blas_thread
 from ._checks import check_data, check_enough_data, check_order
 from .data import IDData
 from .errors import SysidError
@@ -117,8 +118,8 @@ def _discretise(num, den, Ts, d) -> IDPoly:
 
 
 def _filter(sig, k, den, Ts, method):
-    """Sampled ``s^k / den(s)`` applied to ``sig``."""
-    num = np.zeros(den.size - k)
+    """Sampled ``s^k / den(s)`` applied to ``sig`` (``0 <= k <= deg den``)."""
+    num = np.zeros(k + 1)  # s^k, highest power first
     num[0] = 1.0
     bd, ad, _ = cont2discrete((num, den), Ts, method=method)
     return lfilter(np.ravel(bd), ad, sig)
@@ -220,6 +221,7 @@ class TFEst:
             sol = least_squares(res, x_start, method="lm", x_scale="jac")
         return sol
 
+    @one_blas_thread
     def fit(self, data: IDData) -> IDTF:
         """Estimate; sets ``model_`` and returns an :class:`IDTF`."""
         data = check_data(data)
@@ -227,13 +229,18 @@ class TFEst:
         m = check_order(self.n_zeros, "nz")
         if m >= n:
             raise SysidError(f"nz must be smaller than np = {n} (proper, strictly), got {m}.")
-        check_enough_data(data.N - self.max_delay_samples, n + m + 1, f"tfest with {n} poles and {m} zeros")
+        dmax = check_order(self.max_delay_samples, "max_delay_samples")
+        check_enough_data(data.N - dmax, n + m + 1, f"tfest with {n} poles and {m} zeros")
         Ts = data.Ts
         if self.iodelay is None:
             d0 = self._scan_delay(data, n)
             candidates = sorted({max(d0 - 1, 0), d0, d0 + 1})
         else:
-            if not (np.isfinite(self.iodelay) and self.iodelay >= 0):
+            try:
+                ok = bool(np.isfinite(self.iodelay) and self.iodelay >= 0)
+            except TypeError:
+                ok = False
+            if not ok:
                 raise SysidError(f"iodelay must be a non-negative number of seconds or None, got {self.iodelay!r}.")
             candidates = [int(round(self.iodelay / Ts))]
         best = None

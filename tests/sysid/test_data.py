@@ -63,3 +63,45 @@ def test_load_practice_recording_and_identify(real_data_dir):
     d = d.detrend()
     m = sysid.arx(d, [3, 3, 1])
     assert sysid.compare(d, m, k=1) > 90.0
+
+
+def _mat_recording(path, **override):
+    from scipy.io import savemat
+    t = np.arange(80) * 0.01
+    v = {"format": "pneusim-recording/1", "sample_time_s": 0.01, "rig": "paper2-enfield",
+         "time_s": t[:, None], "valve_cmd_V": (5 + np.sin(t))[:, None], "position_m": (0.1 + 0.01 * t)[:, None]}
+    v.update(override)
+    savemat(path, {k: val for k, val in v.items() if val is not None})
+    return t
+
+
+def test_load_recording_reads_matlab_form(tmp_path):
+    t = _mat_recording(tmp_path / "rec.mat")
+    d = sysid.load_recording(tmp_path / "rec.mat")
+    assert d.Ts == 0.01 and d.N == 80 and d.metadata["rig"] == "paper2-enfield"
+    np.testing.assert_allclose(d.u, 5 + np.sin(t))
+    assert d.output_unit == "m"
+
+
+@pytest.mark.parametrize("override,match", [
+    (dict(time_s=None), "required variable 'time_s'"),
+    (dict(format="pneusim-recording/2"), "metadata 'format' must be"),
+    (dict(position_m=np.r_[np.full(79, 0.1), np.nan][:, None]), r"'position_m' must be finite, but element 80"),
+])
+def test_load_recording_refuses_bad_matlab_form(tmp_path, override, match):
+    _mat_recording(tmp_path / "bad.mat", **override)
+    with pytest.raises(sysid.SysidError, match=match):
+        sysid.load_recording(tmp_path / "bad.mat")
+
+
+def test_load_recording_requires_time_and_finite_cells(tmp_path):
+    head = "# format: pneusim-recording/1\n# sample_time_s: 0.01\n"
+    p = tmp_path / "no_time.csv"
+    p.write_text(head + "valve_cmd_V,position_m\n" + "5.0,0.1\n" * 60)
+    with pytest.raises(sysid.SysidError, match="required column 'time_s'"):
+        sysid.load_recording(p)
+    p = tmp_path / "nan.csv"
+    rows = [f"{0.01 * i:.2f},5.0,{'nan' if i == 30 else '0.1'}" for i in range(60)]
+    p.write_text(head + "time_s,valve_cmd_V,position_m\n" + "\n".join(rows) + "\n")
+    with pytest.raises(sysid.SysidError, match=r"nan.csv:34: column 'position_m' must be finite"):
+        sysid.load_recording(p)

@@ -69,3 +69,53 @@ def test_bad_prediction_horizon():
     m = sysid.arx(d, [1, 1, 1])
     with pytest.raises(sysid.SysidError, match="k must be"):
         sysid.predict(m, d, 0)
+
+
+def test_rank_deficient_regressors():
+    d = sysid.iddata(np.random.default_rng(0).standard_normal(100), np.ones(100), 1.0)
+    with pytest.raises(sysid.SysidError, match=r"cannot support ARX\[1 2 1\].*persistently exciting"):
+        sysid.arx(d, [1, 2, 1])  # constant input: u(t-1) = u(t-2)
+
+
+def test_online_update_refuses_nan_and_keeps_its_state():
+    est = sysid.RecursiveARX([1, 1, 1], forgetting=0.99, initial_covariance=100.0)
+    for y, u in [(0.1, 1.0), (0.3, -1.0), (0.2, 1.0)]:
+        est.update(y, u)
+    theta, P, n = est.parameters, est.P, est.n_updates
+    for y, u in [(float("nan"), 1.0), (0.1, float("inf"))]:
+        with pytest.raises(sysid.SysidError, match="update needs finite y and u"):
+            est.update(y, u)
+    np.testing.assert_array_equal(est.parameters, theta)
+    np.testing.assert_array_equal(est.P, P)
+    assert est.n_updates == n
+
+
+def _bad_calls():
+    d = simulate_poly([1, -0.5], [0, 1], N=100)
+    m = sysid.arx(d, [1, 1, 1])
+    nan_u = np.ones(100)
+    nan_u[7] = np.nan
+    return {
+        "y": lambda: sysid.iddata("abc", np.zeros(3), 1.0),
+        "Ts": lambda: sysid.iddata(np.zeros(10), np.zeros(10), -0.1),
+        "same length": lambda: sysid.iddata(np.zeros(10), np.zeros(9), 1.0),
+        "na": lambda: sysid.arx(d, [-1, 1, 1]),
+        "orders": lambda: sysid.armax(d, [1, 1, 1]),
+        "k": lambda: sysid.predict(m, d, "two"),
+        "u": lambda: sysid.simulate(m, nan_u),
+        "initial": lambda: sysid.simulate(m, d, initial="guess"),
+        "iodelay": lambda: sysid.tfest(d, 1, 0, iodelay="late"),
+        "max_delay_samples": lambda: sysid.TFEst(1, 0, max_delay_samples=-2).fit(d),
+        "nx": lambda: sysid.n4sid(d, 0),
+        "forgetting": lambda: sysid.rls(d, [1, 1, 1], forgetting=0.0),
+        "data": lambda: sysid.compare(m, d),
+    }
+
+
+@pytest.mark.parametrize("field", list(_bad_calls()))
+def test_bad_input_is_one_sentence_naming_the_field(field):
+    with pytest.raises(sysid.SysidError) as info:
+        _bad_calls()[field]()
+    msg = str(info.value)
+    assert field in msg and msg.endswith(".") and "\n" not in msg, msg
+    assert msg.count(". ") == 0, msg  # one sentence

@@ -39,15 +39,46 @@ def test_n4sid_picks_order_and_poles(seed):
     assert m.singular_values[1] > 10 * m.singular_values[2]
 
 
-def test_state_space_truth_within_three_sigma():
+def _ss_zscores(fit, trials=10):
     truth = IDSS(A_SS, B_SS, C_SS, np.zeros((1, 1)), K_SS, 0.01).to_idpoly().parameters
     z = []
-    for seed in range(10):
-        m = sysid.armax(_ss_data(50 + seed), [2, 2, 2, 1])
+    for seed in range(trials):
+        m = fit(_ss_data(50 + seed))
         z.append((m.parameters - truth) / m.std)
-    z = np.array(z)
-    assert np.sum(np.abs(z) >= 3) <= 1, z
-    assert 0.5 < z.std() < 1.6
+    return np.array(z)
+
+
+@pytest.mark.parametrize("name,fit", [("ssest", lambda d: sysid.ssest(d, 2)),
+                                      ("armax", lambda d: sysid.armax(d, [2, 2, 2, 1]))])
+def test_state_space_truth_within_three_sigma(name, fit):
+    """Repeated seeded trials on a known innovations model; basis-free (ARMAX-equivalent) parameters."""
+    z = _ss_zscores(fit)
+    assert np.sum(np.abs(z) >= 3) <= 1, (name, z)
+    assert 0.5 < z.std() < 1.6, (name, z.std())
+
+
+def test_n4sid_reports_bounds_of_the_right_size():
+    """n4sid is not a prediction-error minimiser and not efficient: its (PEM-Hessian) bounds are
+    about 1.2x optimistic (40 trials: z std 1.24 at most, 3 of 240 outside 3 sigma), so only the
+    scale is checked here; ssest above carries the strict 3-sigma claim."""
+    z = _ss_zscores(lambda d: sysid.n4sid(d, 2))
+    assert np.sum(np.abs(z) >= 3) <= 3, z
+    assert 0.8 < z.std() < 1.6, z.std()
+
+
+def test_ssest_is_observer_canonical_and_refines_n4sid():
+    d = _ss_data(7)
+    m = sysid.ssest(d, 2)
+    np.testing.assert_allclose(m.C, [[1.0, 0.0]])
+    np.testing.assert_allclose(m.A[:, 1], [1.0, 0.0])
+    back = sysid.statespace.idss_from_armax(m.to_idpoly())
+    np.testing.assert_allclose(back.A, m.A, atol=1e-10)
+    np.testing.assert_allclose(back.K, m.K, atol=1e-10)
+    est = sysid.SSEst(2)
+    est.fit(d[:1000])
+    assert est.model_.loss <= est.start_.loss + 1e-12  # PEM does not lose against its start
+    assert est.model_.report["iterations"] >= 1
+    assert sysid.aic(est.model_) <= sysid.aic(est.start_)  # same d, smaller loss
 
 
 def test_n4sid_fit_close_to_true_system():
