@@ -44,7 +44,15 @@ def extensions():
         libraries=["sundials_cvode", "sundials_nvecserial"],
         define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
     )
-    return cythonize([ext], include_path=[str(sundials_config_pxi()), str(odes_root)],
+    # CVODES with forward sensitivities for the parameter fit: declares what it uses itself
+    sensitivity = Extension(
+        "pneusim.solver._cvodes_sensitivity",
+        ["pneusim/solver/_cvodes_sensitivity.pyx"],
+        include_dirs=[numpy.get_include(), os.environ.get("SUNDIALS_INCLUDEDIR", "/usr/include")],
+        libraries=["sundials_cvodes", "sundials_nvecserial"],
+        define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
+    )
+    return cythonize([ext, sensitivity], include_path=[str(sundials_config_pxi()), str(odes_root)],
                      compiler_directives={"language_level": 3}, quiet=True)
 
 

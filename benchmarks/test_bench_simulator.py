@@ -1,9 +1,35 @@
-"""Simulator speed: CVODE (compiled CasADi rhs/Jacobian) against SciPy BDF and LSODA, same model.
+"""Simulator speed: CVODE against SciPy BDF and LSODA and CasADi's own CVODES, same model, same run.
 
-Run with ``bash scripts/bench.sh`` (or ``pytest benchmarks -k simulator -s``). Each
-benchmark stores its real-time factor and position error against a tight
-reference (CVODE at rtol 1e-10) in ``extra_info`` and prints them, with the
-speed ratio to CVODE measured in the same run.
+CVODE is SUNDIALS' through scikits.odes (its solver object, callback classes, serial
+N_Vector and dense linear solver), with the CasADi-generated rhs and Jacobian behind
+scikits.odes' callback classes and the sample loop in C (``pneusim/solver/_cvode_compiled.pyx``).
+
+Run with ``bash scripts/bench.sh`` (or ``pytest benchmarks/test_bench_simulator.py --benchmark-only -s``).
+
+Cases: an 80 s closed-loop paper-2 run (multisine) and a 20 s closed-loop paper-1 run
+(pulses), both with the sensor noise off.
+
+* ``test_cvode_real_time``: the rigs as shipped (16-bit position converter in the loop):
+  the real-time factor of :func:`simulate` with the default CVODE backend.
+* ``test_simulator_speed``: the same runs with the position converter off, so that the
+  position error against a tight reference is the solver's own (with the converter in
+  the loop, a difference far below one code flips a code now and then and the closed
+  loop goes its own way, see ``test_cvode_real_time``'s printout).  CVODE, SciPy BDF
+  and SciPy LSODA, all on the same CasADi model at rtol 1e-6 with the same absolute
+  tolerances.  The reference is CVODE at rtol 1e-10 (its own error is estimated
+  against rtol 1e-11 and printed; ``tests/pneusim/test_solver.py`` checks CVODE against
+  SciPy Radau at tight tolerance).
+* ``test_equal_accuracy``: CVODE at rtol 1e-7 and 1e-8 too; each SciPy peer's time is
+  divided by the time of the fastest CVODE run whose error is no larger than the
+  peer's, which is the speed ratio at equal (or better) accuracy.
+* ``test_casadi_own_cvodes``: CasADi's own SUNDIALS integrator (``cvodes`` in a
+  ``mapaccum`` over the samples) on the 80 s paper-2 closed loop and an 80 s open loop,
+  same tolerances (states scaled so that CasADi's scalar abstol is ours).
+
+Speed is only reported (``extra_info`` and the printout), never asserted; the asserts
+check that every backend is in the same accuracy class.  The printout sets the numbers
+beside the issue's targets: at least 500x real time for the 80 s closed-loop paper-2
+run, at least 20x faster than SciPy BDF at equal accuracy.
 """
 
 import time
@@ -14,93 +40,194 @@ import pytest
 from pneusim.experiment import standard_experiment
 from pneusim.rig import load_rig
 from pneusim.simulate import simulate
+from pneusim.solver.backends import state_scales
 
-RESULTS = {}
 CASES = {
-    "paper2-closed-80s": ("paper2-enfield", "multisine", 80.0, "closed"),
-    "paper1-closed-20s": ("paper1-mre", "pulses", 20.0, "closed"),
+    "paper2-closed-80s": ("paper2-enfield", "multisine", 80.0),
+    "paper1-closed-20s": ("paper1-mre", "pulses", 20.0),
 }
-BACKENDS = ("cvode", "scipy-bdf", "scipy-lsoda")
+PEERS = ("scipy-bdf", "scipy-lsoda")
+RTOL = 1e-6
+LADDER = (1e-7, 1e-8)
+TARGET_REAL_TIME = {"paper2-closed-80s": 500.0}  # the issue's targets, printed, not asserted
+TARGET_VS_BDF = 20.0
+RESULTS = {}  # (case, backend, rtol) -> (best wall time s, max position error m)
 
 
-def _case(name):
-    rig_name, kind, duration, loop = CASES[name]
+def _case(name, converter=True, loop="closed", kind=None):
+    rig_name, default_kind, duration = CASES[name]
     rig = load_rig(rig_name)
-    return rig, standard_experiment(rig, kind, duration, loop, seed=1), duration
+    if not converter:
+        rig = rig.with_params({"position_adc_bits": 0})
+    return rig, standard_experiment(rig, kind or default_kind, duration, loop, seed=1), duration
 
 
 _REFERENCE = {}
 
 
-def _reference(name):
-    if name not in _REFERENCE:
-        rig, exp, _ = _case(name)
-        _REFERENCE[name] = simulate(rig, exp, noise_scale=0, rtol=1e-10).state("position_m")
-    return _REFERENCE[name]
+def _reference(name, converter=False):
+    """Position of CVODE at rtol 1e-10, and its distance to rtol 1e-11 (the reference's own error)."""
+    key = (name, converter)
+    if key not in _REFERENCE:
+        rig, exp, _ = _case(name, converter)
+        ref = simulate(rig, exp, noise_scale=0, rtol=1e-10)
+        tighter = simulate(rig, exp, noise_scale=0, rtol=1e-11).state("position_m")
+        _REFERENCE[key] = (ref, float(np.max(np.abs(ref.state("position_m") - tighter))))
+    return _REFERENCE[key]
 
 
-@pytest.mark.parametrize("backend", BACKENDS)
+def _timed(fn, rounds):
+    runs = []
+    for _ in range(rounds):
+        started = time.perf_counter()
+        out = fn()
+        runs.append((time.perf_counter() - started, out))
+    return min(t for t, _ in runs), runs[-1][1]
+
+
 @pytest.mark.parametrize("case", list(CASES))
-def test_simulator_speed(benchmark, case, backend):
-    rig, exp, duration = _case(case)
-    reference = _reference(case)
+def test_cvode_real_time(benchmark, case):
+    rig, exp, duration = _case(case, converter=True)
     runs = []
 
     def run():
         started = time.perf_counter()
-        sim = simulate(rig, exp, noise_scale=0, rtol=1e-6, backend=backend)
+        sim = simulate(rig, exp, noise_scale=0)
         runs.append((time.perf_counter() - started, sim))
 
-    rounds = 5 if backend == "cvode" else 1
-    benchmark.pedantic(run, rounds=rounds, iterations=1)
+    benchmark.pedantic(run, rounds=7, iterations=1, warmup_rounds=1)
     best = min(t for t, _ in runs)
-    error = float(np.max(np.abs(runs[0][1].state("position_m") - reference)))
-    benchmark.extra_info.update({"real_time_factor": duration / best, "max_position_error_m": error})
-    RESULTS[(case, backend)] = (best, error)
-    line = f"{case} {backend}: {best:.3f} s, {duration / best:.0f}x real time, max position error {error:.2e} m"
-    if backend != "cvode" and (case, "cvode") in RESULTS:
-        ratio = best / RESULTS[(case, "cvode")][0]
-        benchmark.extra_info["cvode_speedup"] = ratio
-        line += f" -> CVODE is {ratio:.0f}x faster"
+    sim = runs[-1][1]
+    ref, _ = _reference(case, converter=True)
+    error = float(np.max(np.abs(sim.state("position_m") - ref.state("position_m"))))
+    stats = sim.solver_stats
+    n = exp.n_samples + int(round(exp.warmup_s / exp.sample_time_s))
+    benchmark.extra_info.update({"real_time_factor": duration / best, "max_position_error_m": error,
+                                 "steps_per_sample": stats["steps"] / n})
+    print(f"\n{case} as shipped (converter in the loop), cvode rtol {RTOL:g}: {best:.3f} s, "
+          f"{duration / best:.0f}x real time; {stats['steps'] / n:.1f} steps and "
+          f"{stats['rhs_evaluations'] / n:.1f} rhs evaluations a sample; position vs rtol 1e-10 "
+          f"{error:.1e} m (converter codes flipped by the tolerance, not solver error alone)"
+          + (f"; target >= {TARGET_REAL_TIME[case]:.0f}x real time: "
+             f"{'met' if duration / best >= TARGET_REAL_TIME[case] else 'not met'}"
+             if case in TARGET_REAL_TIME else ""))
+    assert error < 1e-3
+
+
+@pytest.mark.parametrize("backend", ("cvode",) + PEERS)
+@pytest.mark.parametrize("case", list(CASES))
+def test_simulator_speed(benchmark, case, backend):
+    rig, exp, duration = _case(case, converter=False)
+    ref, ref_error = _reference(case)
+    runs = []
+
+    def run():
+        started = time.perf_counter()
+        sim = simulate(rig, exp, noise_scale=0, rtol=RTOL, backend=backend)
+        runs.append((time.perf_counter() - started, sim))
+
+    benchmark.pedantic(run, rounds=5 if backend == "cvode" else 1, iterations=1,
+                       warmup_rounds=1 if backend == "cvode" else 0)
+    best = min(t for t, _ in runs)
+    error = float(np.max(np.abs(runs[-1][1].state("position_m") - ref.state("position_m"))))
+    benchmark.extra_info.update({"real_time_factor": duration / best, "max_position_error_m": error,
+                                 "reference_error_m": ref_error})
+    RESULTS[(case, backend, RTOL)] = (best, error)
+    line = (f"{case} converter off, {backend} rtol {RTOL:g}: {best:.3f} s, {duration / best:.1f}x real time, "
+            f"max position error {error:.1e} m (reference's own {ref_error:.0e} m)")
+    if backend != "cvode" and (case, "cvode", RTOL) in RESULTS:
+        ratio = best / RESULTS[(case, "cvode", RTOL)][0]
+        benchmark.extra_info["cvode_speedup_same_rtol"] = ratio
+        line += f" -> CVODE at the same rtol is {ratio:.0f}x faster"
     print("\n" + line)
     assert error < 1e-3  # same accuracy class: every backend at rtol 1e-6 stays within 1 mm
 
 
-def _casadi_closed_loop(rig, exp, x0, rtol):
-    """The same closed loop entirely inside CasADi: its own CVODES, one ``mapaccum`` over the samples."""
+@pytest.mark.parametrize("case", list(CASES))
+def test_equal_accuracy(benchmark, case):
+    rig, exp, duration = _case(case, converter=False)
+    ref, _ = _reference(case)
+
+    def ladder():
+        for rtol in LADDER:
+            best, sim = _timed(lambda: simulate(rig, exp, noise_scale=0, rtol=rtol), 3)
+            error = float(np.max(np.abs(sim.state("position_m") - ref.state("position_m"))))
+            RESULTS[(case, "cvode", rtol)] = (best, error)
+
+    benchmark.pedantic(ladder, rounds=1, iterations=1)
+    lines = [f"\n{case} converter off, CVODE: " + ", ".join(
+        f"rtol {r:g}: {RESULTS[(case, 'cvode', r)][0]:.3f} s, error {RESULTS[(case, 'cvode', r)][1]:.1e} m"
+        for r in (RTOL,) + LADDER if (case, "cvode", r) in RESULTS)]
+    for peer in PEERS:
+        if (case, peer, RTOL) not in RESULTS:
+            continue
+        t_peer, e_peer = RESULTS[(case, peer, RTOL)]
+        matching = [r for r in (RTOL,) + LADDER if (case, "cvode", r) in RESULTS
+                    and RESULTS[(case, "cvode", r)][1] <= e_peer]
+        if not matching:
+            lines.append(f"  {peer} (error {e_peer:.1e} m): no CVODE run in the ladder is as accurate")
+            continue
+        rtol = min(matching, key=lambda r: RESULTS[(case, "cvode", r)][0])
+        t_cv, e_cv = RESULTS[(case, "cvode", rtol)]
+        ratio = t_peer / t_cv
+        benchmark.extra_info[f"cvode_speedup_equal_accuracy_vs_{peer}"] = ratio
+        lines.append(f"  vs {peer} (rtol {RTOL:g}, error {e_peer:.1e} m, {t_peer:.1f} s): CVODE at rtol "
+                     f"{rtol:g} (error {e_cv:.1e} m, {t_cv:.3f} s) is {ratio:.0f}x faster at equal "
+                     f"or better accuracy" + (f" (target >= {TARGET_VS_BDF:.0f}x: "
+                                               f"{'met' if ratio >= TARGET_VS_BDF else 'not met'})"
+                                               if peer == "scipy-bdf" else ""))
+    print("\n".join(lines))
+    assert all(RESULTS[(case, "cvode", r)][1] < 1e-3 for r in LADDER)
+
+
+def _casadi_loop(rig, exp, x0, rtol, closed):
+    """The whole run inside CasADi: its own CVODES per sample, one ``mapaccum`` over the samples."""
     import casadi as ca
 
     from pneusim.model import ActuatorModel
 
     model = ActuatorModel()
     params = ca.DM(model.param_vector(rig))
-    dae = {"x": model.x_sym, "p": ca.vertcat(model.u_sym, model.p_sym), "ode": model.xdot_sym}
-    scales = np.array([rig.stroke_m, 1.0, 1e5, 1e5])
+    scales = state_scales(model, rig.stroke_m)
+    # states divided by our atol scales, so that CasADi's scalar abstol (= rtol) is our atol vector
+    z = ca.SX.sym("z", len(scales))
+    ode = ca.substitute(model.xdot_sym, model.x_sym, z * scales) / scales
+    dae = {"x": z, "p": ca.vertcat(model.u_sym, model.p_sym), "ode": ode}
     step_fn = ca.integrator("F", "cvodes", dae, 0.0, rig.sample_time_s,
-                            {"reltol": rtol, "abstol": float(rtol * scales.min()), "max_num_steps": 100000})
-    ctrl = exp.controller
-    x = ca.MX.sym("x", 4)
+                            {"reltol": rtol, "abstol": rtol, "max_num_steps": 100000})
+    x = ca.MX.sym("x", len(scales))
     ref = ca.MX.sym("r")
-    quantum = rig.stroke_m / (2 ** 16 - 1)
-    measured = ca.floor(ca.fmin(ca.fmax(x[0], 0.0), rig.stroke_m) / quantum + 0.5) * quantum
-    u = ca.fmin(ca.fmax(ctrl.u0_V + ctrl.kp_V_per_m * (ref - measured), ctrl.u_min_V), ctrl.u_max_V)
-    step = ca.Function("step", [x, ref], [step_fn(x0=x, p=ca.vertcat(u, params))["xf"]])
+    if closed:  # noise off, converter off: the controller reads the true position
+        ctrl = exp.controller
+        u = ca.fmin(ca.fmax(ctrl.u0_V + ctrl.kp_V_per_m * (ref - x[0]), ctrl.u_min_V), ctrl.u_max_V)
+    else:
+        u = ref
+    step = ca.Function("step", [x, ref], [step_fn(x0=x / scales, p=ca.vertcat(u, params))["xf"] * scales])
     run = step.mapaccum("run", exp.n_samples)
-    return lambda: np.asarray(run(x0, exp.signal.reshape(1, -1)))
+    signal = exp.signal.reshape(1, -1)
+    return lambda: np.asarray(run(x0, signal))
 
 
-def test_casadi_own_cvodes_for_comparison(benchmark):
-    """CasADi's own SUNDIALS integrator on the same closed loop (offered only where it is faster)."""
+@pytest.mark.parametrize("loop", ("closed", "open"))
+def test_casadi_own_cvodes(benchmark, loop):
+    """CasADi's own SUNDIALS integrator (offered as a backend only where it is faster: it is not)."""
     case = "paper2-closed-80s"
-    rig, exp, duration = _case(case)
-    reference_run = simulate(rig, exp, noise_scale=0, rtol=1e-10)
-    run = _casadi_closed_loop(rig, exp, reference_run.states[0], 1e-6)
-    out = benchmark.pedantic(run, rounds=2, iterations=1)
-    positions = np.concatenate([[reference_run.states[0, 0]], out[0, :-1]])
-    error = float(np.max(np.abs(positions - reference_run.state("position_m"))))
-    best = benchmark.stats.stats.min
-    line = f"{case} casadi-cvodes (mapaccum): {best:.3f} s, {duration / best:.0f}x real time, max error {error:.2e} m"
-    if (case, "cvode") in RESULTS:
-        line += f"; scikits.odes CVODE backend is {best / RESULTS[(case, 'cvode')][0]:.1f}x faster"
-    print("\n" + line)
-    assert error < 1e-3
+    kind = None if loop == "closed" else "multisine"
+    rig, exp, duration = _case(case, converter=False, loop=loop, kind=kind)
+    ours = lambda: simulate(rig, exp, noise_scale=0, rtol=RTOL)  # noqa: E731
+    reference = simulate(rig, exp, noise_scale=0, rtol=1e-10)
+    run = _casadi_loop(rig, exp, reference.states[0], RTOL, loop == "closed")
+    out = benchmark.pedantic(run, rounds=3, iterations=1, warmup_rounds=1)
+    t_casadi = benchmark.stats.stats.min
+    t_ours, sim = _timed(ours, 5)
+    positions = np.concatenate([[reference.states[0, 0]], out[0, :-1]])
+    e_casadi = float(np.max(np.abs(positions - reference.state("position_m"))))
+    e_ours = float(np.max(np.abs(sim.state("position_m") - reference.state("position_m"))))
+    ratio = t_casadi / t_ours
+    benchmark.extra_info.update({"real_time_factor": duration / t_casadi, "max_position_error_m": e_casadi,
+                                 "cvode_backend_speedup": ratio})
+    print(f"\n{case.replace('closed', loop)} converter off, rtol {RTOL:g}: casadi cvodes (mapaccum) "
+          f"{t_casadi:.3f} s ({duration / t_casadi:.0f}x real time, error {e_casadi:.1e} m); pneusim cvode "
+          f"{t_ours:.3f} s incl. {exp.warmup_s:g} s warm-up ({duration / t_ours:.0f}x, error {e_ours:.1e} m): "
+          f"{ratio:.1f}x faster")
+    assert e_casadi < 1e-3 and e_ours < 1e-3

@@ -15,12 +15,30 @@ from typing import Protocol, Sequence
 
 import numpy as np
 
+from .errors import PneusimError
 from .model import ActuatorModel, Effect
 from .rig import Rig
 from .sensors import Sensors
 from .solver.backends import make_backend
 
 __all__ = ["Plant", "Measurement", "SimulatedPlant"]
+
+_MODELS: dict[tuple, ActuatorModel] = {}
+
+
+def _model_for(effects: Sequence[Effect] = ()) -> ActuatorModel:
+    """The :class:`ActuatorModel` with ``effects``, built once per process for each set of effects.
+
+    Building the symbolic model takes ~20 ms, a good part of a short simulation; the
+    model is immutable, so plants with the same effects share it.
+    """
+    key = tuple((type(e), e.to_text()) for e in effects)
+    model = _MODELS.get(key)
+    if model is None:
+        if len(_MODELS) >= 64:
+            _MODELS.pop(next(iter(_MODELS)))
+        model = _MODELS[key] = ActuatorModel(effects)
+    return model
 
 
 @dataclass(frozen=True)
@@ -64,7 +82,7 @@ class SimulatedPlant:
     def __init__(self, rig: Rig, effects: Sequence[Effect] = (), *, backend: str = "cvode", rtol: float = 1e-6,
                  seed: int = 0, noise_scale: float = 1.0, model: ActuatorModel | None = None):
         self.rig = rig
-        self.model = model if model is not None else ActuatorModel(effects)
+        self.model = model if model is not None else _model_for(effects)
         self.params = self.model.param_vector(rig)
         self.sample_time_s = rig.sample_time_s
         self.solver = make_backend(backend, self.model, self.params, rtol=rtol, stroke_m=rig.stroke_m)
@@ -95,6 +113,39 @@ class SimulatedPlant:
         x = self.solver.x
         return Measurement(self.t_s, self.sensors.position(x[0]), self.sensors.pressure(x[2]),
                            self.sensors.pressure(x[3]))
+
+    def compiled_loop(self, controller=None):
+        """The sample loop in C for this plant with the built-in parts, or ``None``.
+
+        Available when the plant integrates with CVODE, reads through the built-in
+        :class:`Sensors` and ``controller`` is ``None`` (open loop) or exactly a
+        :class:`~pneusim.controller.ProportionalController`; :func:`pneusim.simulate.simulate`
+        then runs the loop without Python per sample, with the same results as
+        :meth:`measure` / :meth:`step`.  Call :meth:`sync_from` afterwards to bring this plant
+        up to where the loop stopped.
+        """
+        from .controller import ProportionalController
+        from .solver.backends import CvodeBackend
+
+        if type(self.solver) is not CvodeBackend or type(self.sensors) is not Sensors:
+            return None
+        if controller is not None and type(controller) is not ProportionalController:
+            return None
+        from .solver._cvode_compiled import SampleLoop
+
+        if not hasattr(self, "_pending"):
+            raise PneusimError("reset the plant before running its loop")
+        s = self.sensors
+        return SampleLoop(self.solver._integrator, self._t0, self._k, self.solver.t, self.sample_time_s,
+                          self.delay_s, self._seen_V, list(self._pending), controller, s.position_std_m,
+                          s.position_quantum_m, s.stroke_m, s.pressure_std_Pa, s.pressure_quantum_Pa)
+
+    def sync_from(self, loop) -> None:
+        """Take over the state a :meth:`compiled_loop` reached."""
+        self._k = loop.k
+        self._seen_V = loop.seen_V
+        self._pending = deque(loop.pending)
+        self.solver.sync(loop.t)
 
     def step(self, command_V: float) -> None:
         """Hold ``command_V`` for one sample; a transport delay makes the valve see it later."""

@@ -46,6 +46,19 @@ class Sensors:
             self._block = self.rng.standard_normal(4096).tolist()[::-1]
         return self._block.pop()
 
+    def take_normals(self, count: int) -> np.ndarray:
+        """The next ``count`` draws of :meth:`_normal`'s stream, as an array (for the compiled loop)."""
+        out = np.empty(count)
+        i = 0
+        while i < count:
+            if not self._block:
+                self._block = self.rng.standard_normal(4096).tolist()[::-1]
+            m = min(len(self._block), count - i)
+            out[i:i + m] = self._block[:-m - 1:-1]  # the block is stored reversed; pop() takes from its end
+            del self._block[-m:]
+            i += m
+        return out
+
     def position(self, true_m: float) -> float:
         y = true_m + (self.position_std_m * self._normal() if self.position_std_m > 0 else 0.0)
         if self.position_quantum_m > 0:

@@ -5,6 +5,11 @@ sample by sample: measure, let the controller (closed loop) or the signal
 (open loop) choose the command, hold it for one sample.  The warm-up before
 ``t = 0`` holds the first sample so that the recording starts from a settled
 rig, as the practice recordings do.
+
+With the built-in parts (CVODE, :class:`~pneusim.sensors.Sensors`, open loop or
+exactly a :class:`~pneusim.controller.ProportionalController`) the same loop
+runs in C (:meth:`SimulatedPlant.compiled_loop`), with the same results to the
+last bit; any other controller or backend runs in the Python loop below.
 """
 
 from __future__ import annotations
@@ -23,6 +28,10 @@ from .recording import Recording
 from .rig import Rig
 
 __all__ = ["Simulation", "simulate", "rerun_recording"]
+
+#: run the sample loop in C when the plant, sensors and controller are the built-in ones
+#: (:meth:`SimulatedPlant.compiled_loop`); False forces the Python loop (tests compare the two)
+COMPILED_LOOP = True
 
 
 @dataclass
@@ -98,21 +107,42 @@ def simulate(rig: Rig, experiment: Experiment, effects: Sequence[Effect] = (), *
     pa, pb = np.empty(n), np.empty(n)
     states = np.empty((n, n_states))
     started = time.perf_counter()
-    steps = range(-n_warm, n)
-    if progress:
-        from tqdm import tqdm
-        steps = tqdm(steps, desc="simulate", unit="sample", leave=False, mininterval=0.5)
-    for k in steps:
-        reading = plant.measure()
-        ref = experiment.signal[max(k, 0)]
-        u = controller.command(reading.t_s, ref, reading.position_m) if closed else ref
-        if k >= 0:
-            positions[k], commands[k] = reading.position_m, u
-            pa[k], pb[k] = reading.pressure_a_Pa, reading.pressure_b_Pa
-            states[k] = plant.state
-            if k == n - 1:
-                break
-        plant.step(u)
+    loop = plant.compiled_loop(controller if closed else None) if COMPILED_LOOP else None
+    if loop is not None:
+        # the same loop in C (built-in sensors, proportional controller or open loop, CVODE)
+        signal = np.ascontiguousarray(experiment.signal, dtype=float)
+        bounds = list(range(-n_warm, n, 2000 if progress else n + n_warm)) + [n]
+        bar = None
+        if progress:
+            from tqdm import tqdm
+            bar = tqdm(total=n + n_warm, desc="simulate", unit="sample", leave=False, mininterval=0.5)
+        for k_from, k_to in zip(bounds[:-1], bounds[1:]):  # in chunks only to move the progress bar
+            normals = plant.sensors.take_normals((k_to - k_from) * loop.normals_per_sample)
+            flag, t_reached, message = loop.run(k_from, k_to, n, signal, normals, positions, commands, pa, pb,
+                                                states)
+            if flag < 0:
+                plant.solver.failed(flag, t_reached, message)
+            if bar is not None:
+                bar.update(k_to - k_from)
+        if bar is not None:
+            bar.close()
+        plant.sync_from(loop)
+    else:
+        steps = range(-n_warm, n)
+        if progress:
+            from tqdm import tqdm
+            steps = tqdm(steps, desc="simulate", unit="sample", leave=False, mininterval=0.5)
+        for k in steps:
+            reading = plant.measure()
+            ref = experiment.signal[max(k, 0)]
+            u = controller.command(reading.t_s, ref, reading.position_m) if closed else ref
+            if k >= 0:
+                positions[k], commands[k] = reading.position_m, u
+                pa[k], pb[k] = reading.pressure_a_Pa, reading.pressure_b_Pa
+                states[k] = plant.state
+                if k == n - 1:
+                    break
+            plant.step(u)
     wall = time.perf_counter() - started
 
     meta = {"format": "pneusim-recording/1", "sample_time_s": repr(ts), "rig": rig.name,

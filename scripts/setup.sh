@@ -23,15 +23,15 @@ if [ ! -x .venv/bin/python ]; then
   "$python" -m venv .venv
 fi
 stamp=.venv/.pneusim-installed
-# reinstall when the packaging or the compiled extension changed
-want="$(cat pyproject.toml setup.py pneusim/solver/_cvode_compiled.pyx | sha256sum | cut -d' ' -f1)"
+# reinstall when the packaging or a compiled extension changed
+want="$(cat pyproject.toml setup.py pneusim/solver/*.pyx | sha256sum | cut -d' ' -f1)"
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   echo "setup: installing pneusim and its dependencies into .venv"
   .venv/bin/python -m pip install -q --upgrade pip wheel setuptools
   # scikits.odes 2.7.x builds its Cython extension against Debian's SUNDIALS 6.
   SUNDIALS_INST=/usr .venv/bin/python -m pip install -q "scikits.odes>=2.7,<2.8"
   # our own extension cimports scikits.odes' declarations, so it builds without isolation
-  .venv/bin/python -m pip install -q "cython>=3" "setuptools>=68" numpy
+  .venv/bin/python -m pip install -q "cython>=3" "setuptools>=77" numpy
   .venv/bin/python -m pip install -q --no-build-isolation -e ".[test]"
   echo "$want" > "$stamp"
 fi

@@ -1,8 +1,10 @@
 """ODE backends that integrate the model between sample instants with the input held.
 
 * :class:`CvodeBackend` — SUNDIALS CVODE (BDF, Newton, dense direct solver with
-  the exact CasADi Jacobian) through ``scikits.odes``; right-hand side and
-  Jacobian are compiled C called from CVODE without Python in between.
+  the exact CasADi Jacobian) created and configured by ``scikits.odes``; right-hand
+  side and Jacobian are CasADi-generated C behind scikits.odes' callback classes
+  (:mod:`pneusim.solver._cvode_compiled`), called without Python in between, and
+  the integration to each sample (or a whole sample loop) is driven from C.
 * :class:`ScipyBackend` — SciPy's ``solve_ivp`` (Radau, BDF or LSODA) with the
   same CasADi functions, restarted at every input change: the reference for
   cross-checks and the peer in benchmarks.
@@ -12,6 +14,8 @@ returning the state at ``t_stop``, and ``stats``.
 """
 
 from __future__ import annotations
+
+import weakref
 
 import numpy as np
 
@@ -27,6 +31,10 @@ def state_scales(model: ActuatorModel, stroke_m: float) -> np.ndarray:
              "spool_opening": 1.0, "spool_rate_per_s": 100.0, "temperature_a_K": 300.0,
              "temperature_b_K": 300.0, "supply_pressure_Pa": 1e5}
     return np.array([scale.get(s, 1.0) for s in model.state_names])
+
+
+#: compiled rhs and Jacobian of each model object, for as long as the model lives
+_COMPILED: "weakref.WeakKeyDictionary[ActuatorModel, dict]" = weakref.WeakKeyDictionary()
 
 
 class _Backend:
@@ -54,23 +62,25 @@ class CvodeBackend(_Backend):
     def __init__(self, model, params, *, rtol=1e-6, atol=None, stroke_m=0.3, max_steps=50000):
         super().__init__(model, params, rtol=rtol, atol=atol, stroke_m=stroke_m)
         from scikits.odes import ode
+
         from . import _cvode_compiled as fast
         from .codegen import compile_functions
 
-        compiled = compile_functions([model.rhs, model.jac], prefix=_prefix(model))
-        self._fast = fast
-        self._u = np.zeros(1)
+        compiled = _COMPILED.get(model)
+        if compiled is None:  # generating the C source to look up the library takes ~10 ms: once per model
+            compiled = _COMPILED[model] = compile_functions([model.rhs, model.jac], prefix=_prefix(model))
         n = len(model.state_names)
-        rhs_c, jac_c = compiled[model.rhs.name()], compiled[model.jac.name()]
-        rhs_kernel = fast.CasadiKernel(rhs_c.address, rhs_c.n_iw, rhs_c.n_w, self._u, self.params)
-        jac_kernel = fast.CasadiKernel(jac_c.address, jac_c.n_iw, jac_c.n_w, self._u, self.params)
-        self._keep = (compiled, rhs_kernel, jac_kernel)  # the solver holds raw pointers into these
-        self._ode = ode("cvode", fast.CompiledRhs(rhs_kernel), jacfn=fast.CompiledJac(jac_kernel, n),
-                           old_api=False, lmm_type="BDF", nonlinsolver="newton", linsolver="dense",
-                           rtol=self.rtol, atol=self.atol, max_steps=max_steps, validate_flags=False)
-        self._solver = self._ode._integrator  # the Cython CVODE object whose C memory `advance` drives
-        self._y = np.zeros(n)
-        self._initialized = False
+        self._u = np.zeros(1)  # the input the compiled kernels read; written by the integrator
+        # scikits.odes callback classes; CVODE reaches them through scikits.odes' C wrappers
+        self._rhs = fast.CompiledRhs(fast.CasadiKernel(compiled[model.rhs.name()], self._u, self.params))
+        self._jac = fast.CompiledJac(fast.CasadiKernel(compiled[model.jac.name()], self._u, self.params), n)
+        errors = fast.ErrorText()  # keeps CVODE's message for our error text instead of printing it
+        self._ode = ode("cvode", self._rhs, jacfn=self._jac, old_api=False, lmm_type="BDF", nonlinsolver="newton",
+                        linsolver="dense", rtol=self.rtol, atol=np.array(self.atol, dtype=float),
+                        max_steps=max_steps, err_handler=errors, validate_flags=False)
+        # the scikits.odes CVODE object whose C memory the integrator drives
+        self._integrator = fast.Integrator(self._ode._integrator, self._u, errors, n)
+        self._keep = compiled  # the kernels call into these libraries
 
     def set_params(self, params: np.ndarray):
         self.params[:] = params
@@ -78,38 +88,33 @@ class CvodeBackend(_Backend):
     def reset(self, t0: float, x0: np.ndarray):
         self.t = float(t0)
         self.x = np.array(x0, dtype=float)
-        if not self._initialized:
-            self._solver.init_step(self.t, self.x)
-            self._initialized = True
-        else:
-            self._fast.reinit(self._solver, self.t, np.ascontiguousarray(self.x))
-        self._totals = {}
+        # the input is unknown until the first advance: NaN equals no input, so the first advance restarts
+        self._integrator.reset(self.t, np.ascontiguousarray(self.x), float("nan"))
 
     def advance(self, t_stop: float, u: float) -> np.ndarray:
-        if u != self._u[0]:
-            # The input jumps: restart the BDF history so that no step straddles the jump
-            # with a predictor built on the old input (which fails with stiff spool dynamics).
-            self._bank_stats()
-            self._fast.reinit(self._solver, self.t, self.x)
-            self._u[0] = u
-        flag, t_reached = self._fast.advance(self._solver, t_stop, self._y)
+        # a changed input restarts the BDF history so that no step is predicted from the old input
+        flag, t_reached, message = self._integrator.advance(self.t, t_stop, u)
         if flag < 0:
-            self._fail(f"CVODE flag {flag}", t_reached, self._y)
+            self.failed(flag, t_reached, message)
         self.t = t_stop
-        self.x = self._y.copy()
+        self.x = self._integrator.state()
         return self.x
 
-    def _bank_stats(self):
-        # CVodeReInit zeroes CVODE's counters; keep the run's totals here
-        for key, value in self._fast.statistics(self._solver).items():
-            self._totals[key] = self._totals.get(key, 0) + value
+    def failed(self, flag: int, t_reached: float, message: str):
+        """Raise :class:`SolverError` for a CVODE failure (flag < 0) at ``t_reached``."""
+        self._fail(f"CVODE flag {flag}: {message}" if message else f"CVODE flag {flag}", t_reached,
+                   self._integrator.state())
+
+    def sync(self, t: float):
+        """Take over time and state after the integrator was advanced from C (a compiled loop)."""
+        self.t = float(t)
+        self.x = self._integrator.state()
 
     @property
     def stats(self) -> dict:
-        if not self._initialized:
+        if not self._integrator.initialized:
             return {}
-        current = self._fast.statistics(self._solver)
-        return {k: self._totals.get(k, 0) + v for k, v in current.items()}
+        return self._integrator.statistics()
 
 
 class ScipyBackend(_Backend):

@@ -25,6 +25,9 @@ from ..errors import PneusimError
 __all__ = ["CompiledFunction", "compile_functions", "cache_dir"]
 
 _LOADED: dict[str, ctypes.CDLL] = {}
+#: -O2 inlines CasADi's small helpers (casadi_sq, casadi_fmax, ...) into the kernels; -fno-math-errno
+#: lets sqrt be one instruction.  Neither changes a result (no -ffast-math).  Part of the cache key.
+_CFLAGS = ("-O2", "-fno-math-errno", "-fno-semantic-interposition")
 
 
 def cache_dir() -> Path:
@@ -43,12 +46,20 @@ class CompiledFunction:
     n_iw: int
     n_w: int
     library: ctypes.CDLL
+    n_arg: int = 3   #: length of the argument pointer array the function needs
+    n_res: int = 1
 
 
-def compile_functions(functions: list[ca.Function], prefix: str = "pneusim") -> dict[str, CompiledFunction]:
-    """Generate, compile (once, cached) and load ``functions``; keys are the functions' names."""
+def compile_functions(functions: list[ca.Function], prefix: str = "pneusim",
+                      max_args: int | None = 3) -> dict[str, CompiledFunction]:
+    """Generate, compile (once, cached) and load ``functions``; keys are the functions' names.
+
+    ``max_args``: the callers' argument arrays hold this many pointers (the
+    CVODE kernels pass ``(x, u, p)``); ``None`` for callers that size them from
+    :attr:`CompiledFunction.n_arg`.
+    """
     for f in functions:
-        if f.sz_arg() > 3 or f.sz_res() > 1:
+        if max_args is not None and (f.sz_arg() > max_args or f.sz_res() > 1):
             raise ValueError(f"{f.name()}: compiled kernels take (x, u, p) and give one output")
     with tempfile.TemporaryDirectory() as tmp:
         gen = ca.CodeGenerator(f"{prefix}.c", {"with_header": False, "casadi_int": "long long int"})
@@ -56,7 +67,7 @@ def compile_functions(functions: list[ca.Function], prefix: str = "pneusim") -> 
             gen.add(f)
         gen.generate(tmp + os.sep)
         source = Path(tmp, f"{prefix}.c").read_text()
-    digest = hashlib.sha256((source + ca.__version__).encode()).hexdigest()[:16]
+    digest = hashlib.sha256((source + ca.__version__ + " ".join(_CFLAGS)).encode()).hexdigest()[:16]
     lib_path = cache_dir() / f"{prefix}_{digest}.so"
     if not lib_path.exists():
         _build(source, lib_path)
@@ -67,7 +78,8 @@ def compile_functions(functions: list[ca.Function], prefix: str = "pneusim") -> 
     out = {}
     for f in functions:
         address = ctypes.cast(getattr(lib, f.name()), ctypes.c_void_p).value
-        out[f.name()] = CompiledFunction(f.name(), address, int(f.sz_iw()), int(f.sz_w()), lib)
+        out[f.name()] = CompiledFunction(f.name(), address, int(f.sz_iw()), int(f.sz_w()), lib,
+                                         int(f.sz_arg()), int(f.sz_res()))
     return out
 
 
@@ -79,8 +91,7 @@ def _build(source: str, lib_path: Path) -> None:
         c_file = Path(tmp, "model.c")
         c_file.write_text(source)
         tmp_lib = Path(tmp, lib_path.name)
-        # -O1: the generated code is straight-line; higher levels cost compile time for no speed
-        cmd = [compiler, "-O1", "-shared", "-fPIC", "-o", str(tmp_lib), str(c_file), "-lm"]
+        cmd = [compiler, *_CFLAGS, "-shared", "-fPIC", "-o", str(tmp_lib), str(c_file), "-lm"]
         result = subprocess.run(cmd, capture_output=True, text=True)
         if result.returncode != 0:
             raise PneusimError(f"compiling the model failed: {result.stderr.strip()[:2000]}")

@@ -1,4 +1,5 @@
-"""CVODE against an independent solver, solver failures, and the practice recordings re-run."""
+"""CVODE (scikits.odes) against an independent solver, its compiled callbacks, solver failures,
+and the practice recordings re-run."""
 
 import json
 
@@ -41,8 +42,96 @@ def test_solver_failure_names_time_and_state(rig2):
     model = ActuatorModel()
     backend = CvodeBackend(model, model.param_vector(rig2), max_steps=3, stroke_m=rig2.stroke_m)
     backend.reset(0.0, model.initial_state(rig2, 0.1))
-    with pytest.raises(SolverError, match=r"t = .* s .*position_m="):
+    with pytest.raises(SolverError, match=r"t = .* s .*mxstep.*position_m="):  # with CVODE's own message
         backend.advance(0.5, 9.0)
+
+
+@pytest.mark.parametrize("effects", [(), ("valve_dynamics", "heat_transfer")])
+def test_cvode_is_scikits_odes_with_the_compiled_callbacks(rig2, effects):
+    """scikits.odes' CVODE calls our compiled callbacks, which give CasADi's rhs and Jacobian."""
+    from scikits.odes.sundials.cvode import CVODE, CV_JacRhsFunction, CV_RhsFunction
+
+    model = ActuatorModel([make_effect(name) for name in effects])
+    params = model.param_vector(rig2)
+    backend = CvodeBackend(model, params, stroke_m=rig2.stroke_m)
+    backend.reset(0.0, model.initial_state(rig2, 0.12, 5.0))
+    assert isinstance(backend._ode._integrator, CVODE)
+    assert isinstance(backend._rhs, CV_RhsFunction) and isinstance(backend._jac, CV_JacRhsFunction)
+    backend.advance(0.05, 7.5)  # moving, pressures away from rest: every term of the model counts
+    x, n = backend.x, len(model.state_names)
+    ydot, jac = np.empty(n), np.empty((n, n))
+    assert backend._rhs.evaluate(0.05, x, ydot) == 0
+    assert backend._jac.evaluate(0.05, x, ydot, jac) == 0
+    expected_jac = np.asarray(model.jac(x, 7.5, params))
+    assert np.allclose(ydot, np.asarray(model.rhs(x, 7.5, params)).ravel(), rtol=1e-12, atol=0)
+    assert not np.allclose(expected_jac, expected_jac.T)  # so that a transposed copy would show
+    assert np.allclose(jac, expected_jac, rtol=1e-12, atol=1e-300)
+
+
+def _advance_through(backend, rig, commands, t0=0.0):
+    ts = rig.sample_time_s
+    out = []
+    for k, u in enumerate(commands):
+        out.append(backend.advance(t0 + (k + 1) * ts, u).copy())
+    return np.array(out)
+
+
+def test_cvode_instances_keep_their_own_model_data(rig2):
+    """Two integrators stepped in turn (different parameters) give what each gives alone."""
+    model = ActuatorModel()
+    light, heavy = model.param_vector(rig2), model.param_vector(rig2.with_params({"moving_mass_kg": 5.0}))
+    commands = 5.0 + 2.0 * np.sin(np.arange(60) / 6.0)
+    x0 = model.initial_state(rig2, 0.15, commands[0])
+    alone = []
+    for p in (light, heavy):
+        b = CvodeBackend(model, p, stroke_m=rig2.stroke_m)
+        b.reset(0.0, x0)
+        alone.append(_advance_through(b, rig2, commands))
+    a, b = CvodeBackend(model, light, stroke_m=rig2.stroke_m), CvodeBackend(model, heavy, stroke_m=rig2.stroke_m)
+    a.reset(0.0, x0)
+    b.reset(0.0, x0)
+    ts = rig2.sample_time_s
+    both = [[], []]
+    for k, u in enumerate(commands):
+        both[0].append(a.advance((k + 1) * ts, u).copy())
+        both[1].append(b.advance((k + 1) * ts, u).copy())
+    assert np.array_equal(np.array(both[0]), alone[0]) and np.array_equal(np.array(both[1]), alone[1])
+    assert np.max(np.abs(alone[0][:, 0] - alone[1][:, 0])) > 1e-3  # the mass matters
+
+
+def test_set_params_changes_the_compiled_model_in_place(rig2):
+    model = ActuatorModel()
+    commands = np.full(40, 7.0)
+    heavy_params = model.param_vector(rig2.with_params({"moving_mass_kg": 5.0}))
+    x0 = model.initial_state(rig2, 0.1, 7.0)
+    fresh = CvodeBackend(model, heavy_params, stroke_m=rig2.stroke_m)
+    fresh.reset(0.0, x0)
+    reused = CvodeBackend(model, model.param_vector(rig2), stroke_m=rig2.stroke_m)
+    reused.reset(0.0, x0)
+    _advance_through(reused, rig2, commands)
+    reused.set_params(heavy_params)
+    reused.reset(0.0, x0)
+    assert np.array_equal(_advance_through(reused, rig2, commands), _advance_through(fresh, rig2, commands))
+
+
+def test_statistics_count_the_whole_run_across_restarts(rig2):
+    """Every command change restarts CVODE (which zeroes its counters); the totals keep counting."""
+    model = ActuatorModel()
+    backend = CvodeBackend(model, model.param_vector(rig2), stroke_m=rig2.stroke_m)
+    x0 = model.initial_state(rig2, 0.15, 5.0)
+    backend.reset(0.0, x0)
+    _advance_through(backend, rig2, [6.0] * 10)  # one restart, then a held command
+    held = backend.stats
+    backend.reset(0.0, x0)
+    _advance_through(backend, rig2, [6.0, 6.5] * 5)  # a restart every sample
+    switching = backend.stats
+    assert set(held) == {"steps", "rhs_evaluations", "error_test_failures", "newton_failures",
+                         "jacobian_evaluations"}
+    assert switching["steps"] > held["steps"] > 0
+    assert switching["jacobian_evaluations"] >= 10  # a new Jacobian after each restart
+    assert switching["rhs_evaluations"] >= switching["steps"]
+    backend.reset(0.0, x0)
+    assert backend.stats["steps"] == 0
 
 
 def test_unknown_backend_is_refused():

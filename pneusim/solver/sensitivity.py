@@ -1,0 +1,182 @@
+"""States and their sensitivities over a command schedule, for the parameter fit.
+
+The fit needs ``dx(t_k)/dθ`` and ``dx(t_k)/dx(t_0)`` at every sample.  CasADi
+derives the sensitivity equations from the one model,
+
+``S' = f_x(x, u, p) S + [f_p(x, u, p)[:, free] diag(scales) | 0]``,  ``S(t_0) = [0 | diag(x_scale)]``,
+
+where the columns are the free parameters (divided by their scales, so that
+each direction is of order one) followed by the initial state (divided by the
+state scales).  CasADi generates C for ``f``, ``f_x`` and the sensitivity
+right-hand side; SUNDIALS CVODES integrates state and sensitivities together
+(:mod:`pneusim.solver._cvodes_sensitivity`).  The result is the derivative of
+the simulated samples, exact up to the integration tolerance.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import casadi as ca
+import numpy as np
+
+from ..errors import SolverError
+from ..model import ActuatorModel
+from .backends import state_scales
+from .codegen import compile_functions
+
+__all__ = ["SensitivitySimulator", "command_schedule"]
+
+
+def command_schedule(time_s: np.ndarray, command_V: np.ndarray, start: int, stop: int, delay_s: float = 0.0,
+                     command_before_V: float | None = None):
+    """Integration intervals from sample ``start`` to sample ``stop`` with the commands the valve sees.
+
+    Command ``command_V[k]`` is sent at ``time_s[k]`` and held (zero-order
+    hold).  With a transport delay the valve sees it from ``time_s[k] + delay_s``;
+    before the first command reaches it, it sees ``command_before_V`` (default:
+    the first command, i.e. the rig was holding it).
+
+    Returns
+    -------
+    t_stop : ndarray (m,)
+        Ends of the integration intervals, after ``time_s[start]``.
+    u : ndarray (m,)
+        Command the valve sees on each interval [V].
+    out_index : ndarray (m,) of int64
+        ``k - start`` when ``t_stop`` is the sample instant ``time_s[k]``, else -1.
+    """
+    time_s = np.asarray(time_s, float)
+    command_V = np.asarray(command_V, float)
+    before = command_V[0] if command_before_V is None else float(command_before_V)
+    samples = time_s[start + 1:stop + 1]
+    if delay_s <= 0.0:
+        return samples.copy(), command_V[start:stop].copy(), np.arange(1, stop - start + 1, dtype=np.int64)
+
+    def seen(t):
+        # the latest command whose delayed arrival is at or before t (within rounding)
+        i = np.searchsorted(time_s + delay_s, t + 1e-9 * (time_s[1] - time_s[0]), side="right") - 1
+        return before if i < 0 else command_V[i]
+
+    t0 = time_s[start]
+    arrivals = time_s + delay_s
+    switches = arrivals[(arrivals > t0) & (arrivals < time_s[stop])]
+    eps = 1e-9 * (time_s[1] - time_s[0])
+    points = np.unique(np.concatenate([samples, switches]))
+    # merge points closer than rounding (a delay that is a whole number of samples)
+    keep = np.concatenate([[True], np.diff(points) > eps])
+    points = points[keep]
+    t_stop, u, out = [], [], []
+    last = t0
+    for t in points:
+        u.append(seen(last))
+        t_stop.append(t)
+        k = np.searchsorted(samples, t - eps)
+        out.append(k + 1 if k < samples.size and abs(samples[k] - t) <= eps else -1)
+        last = t
+    return np.array(t_stop), np.array(u), np.array(out, dtype=np.int64)
+
+
+class SensitivitySimulator:
+    """CVODES over command schedules with forward sensitivities (compiled kernels).
+
+    Parameters
+    ----------
+    model : ActuatorModel
+    free : sequence of str
+        Free parameters (names of ``model.param_names``).
+    params : ndarray (n_params,)
+        Parameter vector in SI units; :meth:`set_params` changes it.
+    scales : ndarray (n_free,)
+        Scale of each free parameter: the sensitivity columns are ``d x / d (p_i / scale_i)``.
+    stroke_m : float
+        For the state scales (tolerances, initial-state columns).
+    rtol : float
+        Relative tolerance of the state; absolute tolerances ``rtol * state scale``.
+    state_scale : ndarray (n,), optional
+        Scale of the initial-state columns (default: the solver's state scales).
+    """
+
+    def __init__(self, model: ActuatorModel, free: Sequence[str], params: np.ndarray, scales: np.ndarray,
+                 stroke_m: float, rtol: float = 1e-6, state_scale: np.ndarray | None = None):
+        from . import _cvodes_sensitivity as fast
+
+        self.model = model
+        self.free = list(free)
+        self.n = n = len(model.state_names)
+        self.n_free = len(self.free)
+        self.ns = self.n_free + n
+        self.params = np.ascontiguousarray(params, dtype=float).copy()
+        tolerance_scale = state_scales(model, stroke_m)
+        self.x_scale = tolerance_scale if state_scale is None else np.asarray(state_scale, float)
+        self.weights = np.ascontiguousarray(np.concatenate([np.asarray(scales, float), self.x_scale]))
+        self.rtol = float(rtol)
+        kernels = _compiled_kernels(model, tuple(self.free))
+        self._keep = kernels
+        atol = np.ascontiguousarray(self.rtol * tolerance_scale)
+        self._integrator = fast.SensitivityIntegrator(kernels, n, self.ns, self.params, self.weights,
+                                                      self.rtol, atol)
+
+    def set_params(self, params: np.ndarray) -> None:
+        """Replace the parameter vector (SI units) in place: the compiled kernels read it."""
+        self.params[:] = params
+
+    def initial_sensitivity(self) -> np.ndarray:
+        """``S(t0)`` (n, ns): zero for the parameters, ``diag(x_scale)`` for the initial state."""
+        s0 = np.zeros((self.n, self.ns))
+        s0[:, self.n_free:] = np.diag(self.x_scale)
+        return s0
+
+    def run(self, t0: float, x0: np.ndarray, schedule, n_out: int, sensitivities: bool = True):
+        """Integrate from ``(t0, x0)`` over ``schedule = (t_stop, u, out_index)``.
+
+        Returns ``(x, S)``: states ``(n_out, n)`` at the output rows (row 0 is
+        ``x0``) and, with ``sensitivities``, ``S`` of shape ``(n_out, n, ns)``
+        (else ``None``).
+        """
+        t_stop, u, out_index = schedule
+        x_out = np.full((n_out, self.n), np.nan)
+        x_out[0] = x0
+        s_out = np.zeros((n_out if sensitivities else 1, self.n, self.ns))
+        if sensitivities:
+            s_out[0] = self.initial_sensitivity()
+        flag, t_reached, message = self._integrator.run(
+            float(t0), np.ascontiguousarray(x0, float), self.initial_sensitivity(), t_stop, u, out_index,
+            x_out, s_out, sensitivities)
+        if flag < 0:
+            raise SolverError(f"CVODES failed at t = {t_reached:.6f} s (flag {flag}"
+                              + (f": {message.strip()}" if message else "") + ")")
+        return x_out, (s_out if sensitivities else None)
+
+    @property
+    def stats(self) -> dict:
+        return self._integrator.statistics()
+
+
+_KERNELS: dict = {}
+
+
+def _compiled_kernels(model: ActuatorModel, free: tuple[str, ...]) -> dict:
+    """Compiled ``rhs``, ``jac`` and sensitivity right-hand side of ``model`` for ``free`` (cached)."""
+    key = (model.describe(), model.param_names, free)
+    if key in _KERNELS:
+        return _KERNELS[key]
+    n = len(model.state_names)
+    index = [model.param_names.index(name) for name in free]
+    x, u, p = model.x_sym, model.u_sym, model.p_sym
+    ns = len(index) + n
+    S = ca.SX.sym("S", n, ns)
+    w = ca.SX.sym("w", ns)
+    f = model.xdot_sym
+    forcing = ca.horzcat(ca.jacobian(f, p)[:, index], ca.SX.zeros(n, n)) if index else ca.SX.zeros(n, n)
+    s_dot = ca.mtimes(ca.jacobian(f, x), S) + ca.mtimes(forcing, ca.diag(w))
+    tag = "_".join(e.name for e in model.effects) or "nominal"
+    functions = [
+        ca.Function(f"pneusim_sens_{tag}_rhs", [x, u, p], [f]),
+        ca.Function(f"pneusim_sens_{tag}_jac", [x, u, p], [ca.densify(ca.jacobian(f, x))]),
+        ca.Function(f"pneusim_sens_{tag}_srhs", [x, u, p, S, w], [ca.densify(s_dot)]),
+    ]
+    compiled = compile_functions(functions, prefix=f"pneusim_sens_{tag}", max_args=None)
+    kernels = {key_: compiled[fn.name()] for key_, fn in zip(("rhs", "jac", "sens"), functions)}
+    _KERNELS[key] = kernels
+    return kernels

@@ -1,0 +1,60 @@
+"""CVODES forward sensitivities of the model against finite differences of the same integration."""
+
+import numpy as np
+import pytest
+
+from pneusim.experiment import standard_experiment
+from pneusim.fit import DEFAULT_FREE
+from pneusim.model import ActuatorModel, make_effect
+from pneusim.simulate import simulate
+from pneusim.solver.sensitivity import SensitivitySimulator, command_schedule
+
+
+@pytest.mark.parametrize("effects", [[], [make_effect("valve_dynamics", natural_frequency_Hz=15.0)]])
+def test_sensitivities_match_central_differences(rig2, effects):
+    exp = standard_experiment(rig2, "multisine", 3.0, "closed", seed=4)
+    sim = simulate(rig2, exp, effects, noise_scale=0.0)
+    model = ActuatorModel(effects)
+    free = list(DEFAULT_FREE) + [n for e in effects for n in e.qualified()]
+    params = model.param_vector(rig2)
+    index = [model.param_names.index(n) for n in free]
+    scales = params[index].copy()
+    t, u = sim.recording.time_s, sim.recording.valve_cmd_V
+    start, stop = 100, 160
+    schedule = command_schedule(t, u, start, stop)
+    x0 = sim.states[start]
+
+    def run(p, x, rtol, sens):
+        s = SensitivitySimulator(model, free, p, scales, rig2.stroke_m, rtol=rtol)
+        return s, s.run(t[start], x, schedule, stop - start + 1, sens)
+
+    s, (x, S) = run(params, x0, 1e-9, True)
+    # parameters: central differences of the tightly integrated samples
+    for j, i in enumerate(index):
+        h = 1e-4 * scales[j]
+        plus, minus = params.copy(), params.copy()
+        plus[i] += h
+        minus[i] -= h
+        fd = (run(plus, x0, 1e-11, False)[1][0] - run(minus, x0, 1e-11, False)[1][0]) / (2e-4)
+        assert np.allclose(S[:, 0, j], fd[:, 0], rtol=2e-2, atol=2e-3 * np.abs(fd[:, 0]).max() + 1e-12), free[j]
+    # initial state: columns are d x / d (x0 / x_scale)
+    for k in range(len(x0)):
+        h = 1e-5 * s.x_scale[k]
+        plus, minus = x0.copy(), x0.copy()
+        plus[k] += h
+        minus[k] -= h
+        fd = (run(params, plus, 1e-11, False)[1][0] - run(params, minus, 1e-11, False)[1][0]) / 2e-5
+        assert np.allclose(S[:, 0, len(free) + k], fd[:, 0], rtol=2e-2,
+                           atol=2e-3 * np.abs(fd[:, 0]).max() + 1e-12), model.state_names[k]
+
+
+def test_command_schedule_delays_the_commands_the_valve_sees():
+    t = np.arange(6) * 0.01
+    u = np.array([5.0, 6.0, 7.0, 8.0, 9.0, 10.0])
+    stops, seen, out = command_schedule(t, u, 1, 4, delay_s=0.015, command_before_V=4.0)
+    # command k reaches the valve at t_k + 15 ms: before u[0] arrives it still sees the earlier 4 V
+    assert np.allclose(stops, [0.015, 0.02, 0.025, 0.03, 0.035, 0.04])
+    assert np.allclose(seen, [4.0, 5.0, 5.0, 6.0, 6.0, 7.0])
+    assert list(out) == [-1, 1, -1, 2, -1, 3]
+    stops, seen, out = command_schedule(t, u, 0, 5)
+    assert np.allclose(stops, t[1:]) and np.allclose(seen, u[:-1]) and list(out) == [1, 2, 3, 4, 5]
