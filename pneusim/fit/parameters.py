@@ -1,31 +1,45 @@
-"""Work in progress (issue 5, not wired to the command line or tested yet).
+"""Which parameters a fit frees, their scales and their physical bounds.
 
-Which parameters a fit frees, their scales (typical values) and physical bounds.
-
-A free parameter enters the optimiser as ``theta = value / scale`` so that
+A free parameter enters the optimiser as ``theta = value / scale`` (the scale
+is its starting value, or a typical magnitude when it starts at zero), so that
 every decision variable is of order one.  Bounds are physical: positive where
-the physics needs it, the critical pressure ratio in (0.05, 0.95).
+the physics needs it (within a factor of 50 of the start: a real rig differs
+from its data sheet by tens of percent, not by orders of magnitude), the
+critical pressure ratio in (0.05, 0.95), effect parameters in the ranges that
+keep the effect physical.
 """
 
 from __future__ import annotations
 
-from ..errors import FitError
-from ..rig import Rig
+from typing import Sequence
 
-__all__ = ["DEFAULT_FREE", "parameter_scale", "parameter_bounds", "UNFITTABLE"]
+from ..errors import FitError
+
+__all__ = ["DEFAULT_FREE", "EFFECT_FREE", "parameter_scale", "parameter_bounds", "check_free"]
 
 #: the nominal model's free parameters (``shared/spec/diagnosis.md``)
 DEFAULT_FREE = ("valve_sonic_conductance_m3_per_s_Pa", "valve_critical_pressure_ratio",
                 "friction_static_N", "friction_coulomb_N", "friction_stribeck_velocity_m_per_s",
                 "friction_viscous_N_s_per_m", "moving_mass_kg")
 
-#: parameters whose effect is not inside the ODE (handled by the command schedule)
-UNFITTABLE = {"transport_delay.delay_s": "the transport delay shifts the command schedule outside the "
-                                         "CasADi model, so it cannot be fitted by gradient; "
-                                         "fix it with --effect transport_delay:delay_s=VALUE "
-                                         "(supported only as a whole number of samples)"}
+#: the parameters an effect adds to the free set when it is switched on in a fit
+EFFECT_FREE = {
+    "leakage": ("leakage.conductance_kg_per_s_Pa",),
+    "valve_deadband": ("valve_deadband.deadband_V",),
+    "valve_offset": ("valve_offset.offset_V",),
+    "valve_dynamics": ("valve_dynamics.natural_frequency_Hz", "valve_dynamics.damping"),
+    "transport_delay": ("transport_delay.delay_s",),
+    "heat_transfer": ("heat_transfer.time_constant_s",),
+    "friction_asymmetry": ("friction_asymmetry.retract_factor",),
+    "supply_pressure_droop": ("supply_pressure_droop.supply_volume_m3",
+                              "supply_pressure_droop.supply_conductance_m3_per_s_Pa"),
+    "external_load": ("external_load.force_N", "external_load.stiffness_N_per_m"),
+}
 
-#: (scale, lower, upper) in SI units; None: derived from the starting value
+#: parameters found by a search over a grid instead of by gradient (they move command switch times)
+SEARCHED = ("transport_delay.delay_s",)
+
+#: (typical magnitude, lower, upper) in SI units; None: from the starting value
 _TABLE = {
     "valve_critical_pressure_ratio": (0.3, 0.05, 0.95),
     "friction_static_N": (None, 0.0, None),
@@ -34,16 +48,19 @@ _TABLE = {
     "valve_deadband.deadband_V": (0.2, 0.0, 2.5),
     "valve_offset.offset_V": (0.1, -2.0, 2.0),
     "leakage.conductance_kg_per_s_Pa": (1e-9, 0.0, None),
-    "external_load.force_N": (10.0, None, None),
-    "external_load.stiffness_N_per_m": (100.0, None, None),
+    "external_load.force_N": (50.0, None, None),
+    "external_load.stiffness_N_per_m": (500.0, None, None),
     "friction_asymmetry.retract_factor": (1.0, 0.05, 20.0),
+    "valve_dynamics.natural_frequency_Hz": (None, 0.5, 1000.0),
     "valve_dynamics.damping": (0.7, 0.05, 5.0),
+    "heat_transfer.time_constant_s": (None, 1e-3, 100.0),
     "heat_transfer.wall_temperature_K": (293.15, 200.0, 400.0),
+    "transport_delay.delay_s": (0.01, 0.0, 0.5),
 }
 
 
 def parameter_scale(name: str, start: float) -> float:
-    """Typical magnitude of a parameter (its starting value unless the table says otherwise)."""
+    """Typical magnitude of a parameter: the table's, else the starting value's."""
     scale = _TABLE.get(name, (None,))[0]
     if scale is None:
         scale = abs(start) if start != 0 else 1.0
@@ -51,26 +68,29 @@ def parameter_scale(name: str, start: float) -> float:
 
 
 def parameter_bounds(name: str, start: float) -> tuple[float, float]:
-    """Physical (lower, upper) bounds in SI units."""
-    if name in UNFITTABLE:
-        raise FitError(f"cannot fit {name}: {UNFITTABLE[name]}")
+    """Physical ``(lower, upper)`` bounds in SI units."""
     _, lo, hi = _TABLE.get(name, (None, "pos", "pos"))
-    mag = abs(start) if start != 0 else 1.0
+    magnitude = abs(start) if start != 0 else parameter_scale(name, start)
     if lo == "pos":  # positive parameters: within a factor 50 of the start
-        lo, hi = mag / 50.0, mag * 50.0
+        lo, hi = magnitude / 50.0, magnitude * 50.0
     if lo is None:
-        lo = -50.0 * mag
+        lo = -50.0 * magnitude
     if hi is None:
-        hi = 50.0 * mag
+        hi = 50.0 * magnitude
     return float(lo), float(hi)
 
 
-def check_free(names, param_names, rig: Rig) -> None:
+def check_free(names: Sequence[str], param_names: Sequence[str], known: Sequence[str]) -> None:
+    """Refuse free parameters the model does not have, or that the data sheet fixes."""
     for name in names:
-        if name in UNFITTABLE:
-            raise FitError(f"cannot fit {name}: {UNFITTABLE[name]}")
         if name not in param_names:
             effect = name.partition(".")[0] if "." in name else None
-            hint = (f"switch the effect on with --effect {effect}" if effect else
-                    "expected a rig parameter of rigs.toml such as " + ", ".join(DEFAULT_FREE[:3]))
-            raise FitError(f"--free {name!r} is not a parameter of this model; {hint}")
+            if effect:
+                raise FitError(f"--free {name}: the effect {effect!r} is not switched on; "
+                               f"add --effect {effect}")
+            raise FitError(f"--free {name}: not a parameter of this model; expected a rig parameter "
+                           f"such as {', '.join(DEFAULT_FREE[:3])} or EFFECT.PARAM of a switched-on effect")
+        if name in known:
+            continue  # allowed on request: a user may doubt a data-sheet value
+    if len(set(names)) != len(names):
+        raise FitError(f"--free lists a parameter twice: {', '.join(names)}")

@@ -1,0 +1,102 @@
+"""Physical fit speed: pneusim's fit (multiple shooting, CVODES sensitivities, trust region + IPOPT)
+against SciPy's ``least_squares`` with finite-difference gradients on the same simulator.
+
+The recording: the 8000-sample paper-2 closed-loop multisine (10 ms, sensor noise on) of a rig
+whose seven default free parameters differ from the data sheet by 20-30 %.  Both start from the
+rig file's values.  The SciPy peer re-runs the recording's experiment (controller in the loop, the
+way one fits a closed-loop recording without multiple shooting) with ``pneusim.simulate`` and
+differentiates it by finite differences.  Each benchmark prints its time, the largest parameter
+error and the validation fit; the second prints the speed ratio measured in the same run.
+
+    pytest benchmarks/test_bench_fit.py --benchmark-only -s
+"""
+
+import time
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+
+from pneusim.experiment import standard_experiment
+from pneusim.fit import DEFAULT_FREE, fit_recording
+from pneusim.metrics import fit_percent
+from pneusim.rig import load_rig
+from pneusim.simulate import rerun_recording, simulate
+
+RESULTS = {}
+FACTORS = {"valve_sonic_conductance_m3_per_s_Pa": 0.8, "valve_critical_pressure_ratio": 0.26 / 0.3,
+           "friction_static_N": 1.2, "friction_coulomb_N": 0.9, "friction_stribeck_velocity_m_per_s": 1.3,
+           "friction_viscous_N_s_per_m": 1.2, "moving_mass_kg": 1.25}
+
+
+@pytest.fixture(scope="module")
+def case():
+    rig = load_rig("paper2-enfield")
+    truth = {k: rig[k] * f for k, f in FACTORS.items()}
+    true_rig = rig.with_params(truth)
+    experiment = standard_experiment(true_rig, "multisine", 80.0, "closed", seed=1)
+    recording = simulate(true_rig, experiment, seed=2, record_pressures=False).recording
+    return rig, truth, recording
+
+
+def _report(name, seconds, estimates, truth, validation):
+    error = max(abs(estimates[k] / truth[k] - 1.0) for k in truth)
+    RESULTS[name] = seconds
+    line = f"{name}: {seconds:.1f} s, largest parameter error {100 * error:.2f} %, validation fit {validation:.2f} %"
+    if name != "pneusim" and "pneusim" in RESULTS:
+        line += f" -> pneusim is {seconds / RESULTS['pneusim']:.1f}x faster"
+    print("\n" + line)
+    return error
+
+
+@pytest.mark.benchmark(group="fit")
+def test_fit_pneusim(benchmark, case):
+    rig, truth, recording = case
+    out = {}
+
+    def run():
+        started = time.perf_counter()
+        out["result"] = fit_recording(recording, rig)
+        out["seconds"] = time.perf_counter() - started
+
+    benchmark.pedantic(run, rounds=1, iterations=1)
+    result = out["result"]
+    error = _report("pneusim", out["seconds"], result.estimates, truth, result.fit_percent)
+    benchmark.extra_info.update({"seconds": out["seconds"], "largest_error": error,
+                                 "validation_fit_percent": result.fit_percent})
+    assert error < 0.05
+
+
+@pytest.mark.benchmark(group="fit")
+def test_fit_scipy_least_squares_finite_differences(benchmark, case):
+    rig, truth, recording = case
+    n = recording.n_samples
+    n_est = int(round(0.7 * n))
+    estimation = recording.slice(None, recording.time_s[n_est])
+    validation = recording.slice(recording.time_s[n_est], None)
+    start = np.array([rig[k] for k in DEFAULT_FREE])
+    sigma = rig["position_noise_std_m"]
+
+    def rig_of(theta):
+        return rig.with_params(dict(zip(DEFAULT_FREE, theta * start)))
+
+    def residuals(theta):
+        sim = rerun_recording(rig_of(theta), estimation, noise_scale=0.0)
+        return (sim.recording.position_m - estimation.position_m) / sigma
+
+    out = {}
+
+    def run():
+        started = time.perf_counter()
+        out["fit"] = least_squares(residuals, np.ones(len(start)), bounds=(0.05, 20.0), method="trf",
+                                   x_scale=1.0, diff_step=1e-4, max_nfev=400)
+        out["seconds"] = time.perf_counter() - started
+
+    benchmark.pedantic(run, rounds=1, iterations=1)
+    theta = out["fit"].x
+    val = rerun_recording(rig_of(theta), validation, noise_scale=0.0).recording.position_m
+    estimates = dict(zip(DEFAULT_FREE, theta * start))
+    error = _report("scipy least_squares (finite differences)", out["seconds"], estimates, truth,
+                    fit_percent(validation.position_m, val))
+    benchmark.extra_info.update({"seconds": out["seconds"], "largest_error": error,
+                                 "function_evaluations": int(out["fit"].nfev)})

@@ -1,0 +1,12 @@
+"""Physical parameter estimation: the one CasADi model fitted to a recording by IPOPT.
+
+``fit_recording(recording, rig, effects)`` returns a :class:`FitResult` with
+estimates, standard errors, correlations, identifiability warnings and a
+validation fit on data the optimiser never saw.
+"""
+
+from .fitter import fit_recording, noise_std_estimate
+from .parameters import DEFAULT_FREE, EFFECT_FREE
+from .result import FitResult, ParameterEstimate
+
+__all__ = ["fit_recording", "noise_std_estimate", "FitResult", "ParameterEstimate", "DEFAULT_FREE", "EFFECT_FREE"]

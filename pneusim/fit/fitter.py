@@ -1,0 +1,292 @@
+"""Fit the physical model to a recording: estimates, uncertainty, validation.
+
+``fit_recording(recording, rig)`` runs, in order:
+
+1. **checks** — the recording matches the rig (sample time, stroke, pressure
+   range) and moves enough to say anything about the free parameters;
+2. **split** — the first ``1 - validation_fraction`` of the recording
+   estimates, the rest validates and is never seen by the optimiser;
+3. **pre-fit** — the multiple-shooting problem (:mod:`.shooting`) on a short
+   window, from the rig file's values, by trust-region least squares with the
+   continuity between segments weighted more and more (:mod:`.stages`);
+4. **fit** — the whole estimation part from the pre-fit: trust region, then
+   IPOPT (:mod:`.nlp`) on the exact constrained problem; a fit that ends well
+   above its pre-fit's residual is retried from the next start;
+5. **uncertainty** — the Gauss-Newton covariance of the estimates with the
+   segment states as nuisance parameters, each signal weighted by its residual
+   standard deviation (:mod:`.uncertainty`); standard errors, correlations and
+   warnings for parameters the recording cannot pin down;
+6. **validation** — the fitted model simulated over the validation part with
+   the recorded command, from the state the fit estimated at its start, and
+   scored with MATLAB's fit %.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Sequence
+
+import numpy as np
+
+from ..errors import FitError
+from ..metrics import fit_percent
+from ..model import ActuatorModel, Effect
+from ..recording import Recording
+from ..rig import Rig, load_rig
+from ..solver.sensitivity import command_schedule
+from .parameters import DEFAULT_FREE, EFFECT_FREE, SEARCHED, check_free, parameter_bounds, parameter_scale
+from .initial import initial_starts
+from .result import FitResult, ParameterEstimate
+from .shooting import FitData, ShootingProblem
+from .stages import polish, trust_region
+from .uncertainty import covariance
+
+__all__ = ["fit_recording", "noise_std_estimate"]
+
+#: alternative starts of the pre-fit, as factors on the starting values (deterministic)
+_START_FACTORS = (
+    {},
+    {"valve_sonic_conductance_m3_per_s_Pa": 0.6, "friction_static_N": 0.6, "friction_coulomb_N": 0.6,
+     "moving_mass_kg": 1.5},
+    {"valve_sonic_conductance_m3_per_s_Pa": 1.6, "friction_static_N": 1.8, "friction_coulomb_N": 1.8,
+     "friction_viscous_N_s_per_m": 0.5, "moving_mass_kg": 0.7},
+)
+
+
+def noise_std_estimate(values: np.ndarray) -> float:
+    """Sensor noise from the data: robust std of second differences, ``MAD / 0.6745 / sqrt(6)``.
+
+    The second difference of white noise has variance ``6 sigma^2``; the
+    median ignores the samples where the true signal accelerates.
+    """
+    d2 = np.diff(np.asarray(values, float)[np.isfinite(values)], 2)
+    if d2.size < 10:
+        return 0.0
+    return float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / np.sqrt(6.0))
+
+
+def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: Sequence[Effect] = (),
+                  free: Sequence[str] | None = None, *, validation_fraction: float = 0.3,
+                  segment_samples: int = 50, prefit_samples: int = 2000, starts: int = 3,
+                  rtol: float = 1e-6, threads: int = 2, max_iter: int = 40, verbose: bool = False) -> FitResult:
+    """Fit the rig's uncertain parameters (and those of ``effects``) to ``recording``.
+
+    Parameters
+    ----------
+    recording : Recording
+        A ``pneusim-recording/1`` recording (position, command, optionally pressures).
+    rig : Rig, str or None
+        The nominal rig (starting values and known data); default the
+        recording's ``rig`` metadata.
+    effects : sequence of Effect
+        Optional physics switched on in the model; their parameters are
+        starting values and are freed too (unless ``free`` says otherwise).
+    free : sequence of str, optional
+        Names of the free parameters; default :data:`DEFAULT_FREE` plus the
+        effects' parameters.
+    validation_fraction : float
+        Final fraction of the recording kept for validation, in (0, 0.9].
+    segment_samples : int
+        Samples per shooting segment.
+    prefit_samples : int
+        Length of the pre-fit window, samples.
+    starts : int
+        Pre-fit starts tried at most (the first from the rig file's values).
+    rtol : float
+        CVODES relative tolerance.
+    threads : int
+        Threads integrating segments in parallel.
+    max_iter : int
+        IPOPT iterations per polishing round.
+    verbose : bool
+        Print each stage's outcome.
+
+    Raises
+    ------
+    FitError
+        The recording does not match the rig, does not excite the free
+        parameters, or the optimiser could not fit it.
+    """
+    started = time.perf_counter()
+    rig = _resolve_rig(recording, rig)
+    model = ActuatorModel(effects)
+    delay_s = model.command_delay_s()
+    free = list(free) if free else _default_free(model)
+    check_free(free, model.param_names, rig.sections.get("known", ()))
+    searched = [name for name in free if name in SEARCHED]
+    if searched:
+        raise FitError(f"--free {searched[0]}: a transport delay moves the command switch times and has no "
+                       "gradient; fix it with --effect transport_delay:delay_s=VALUE (pneusim diagnose searches it)")
+    if not 0.0 < validation_fraction <= 0.9:
+        raise FitError(f"validation_fraction must be in (0, 0.9], got {validation_fraction}")
+    p_start = model.param_vector(rig)
+    index = [model.param_names.index(name) for name in free]
+    scales = np.array([parameter_scale(name, p_start[i]) for name, i in zip(free, index)])
+    bounds = np.array([parameter_bounds(name, p_start[i]) for name, i in zip(free, index)])
+    theta_start = p_start[index] / scales
+
+    signals, sigma = _signals(recording, rig, model)
+    n = recording.n_samples
+    n_est = int(round(n * (1.0 - validation_fraction)))
+    if n_est < 100 or n - n_est < 20:
+        raise FitError(f"{_name(recording)}: {n} samples are too few to fit on {1 - validation_fraction:.0%} and "
+                       "validate on the rest (at least 100 estimation and 20 validation samples)")
+    _check_excitation(recording, rig, n_est, sigma["position_m"])
+    seg = max(10, int(segment_samples))
+    lower, upper = bounds[:, 0] / scales, bounds[:, 1] / scales
+
+    def window(stop):
+        return FitData(recording.time_s[:stop], recording.valve_cmd_V[:stop], float(recording.valve_cmd_V[0]),
+                       {k: (v[:stop], sigma[k]) for k, v in signals.items()})
+
+    def problem(stop):
+        pb = ShootingProblem(model, p_start, free, scales, window(stop), rig.stroke_m, seg, delay_s, rtol, threads)
+        x_lo, x_hi = pb.state_bounds()
+        lo = np.concatenate([lower, np.tile(x_lo / pb.x_scale, pb.n_segments)])
+        hi = np.concatenate([upper, np.tile(x_hi / pb.x_scale, pb.n_segments)])
+        return pb, lo, hi
+
+    # pre-fit on a short window from a start, then the whole estimation part from the pre-fit: trust
+    # region first, then IPOPT on the exact constrained problem.  A short window can leave two basins
+    # equally good (the valve's critical pressure ratio against its conductance, say) that the whole
+    # part tells apart: a fit that ends well above its pre-fit's residual is retried from the next start.
+    pre_pb, pre_lo, pre_hi = problem(min(n_est, prefit_samples))
+    pb, lo, hi = problem(n_est)
+    attempts, fits = [], []
+    for k, factors in enumerate(_START_FACTORS[:max(1, starts)]):
+        theta0 = np.clip(theta_start * np.array([factors.get(name, 1.0) for name in free]), lower, upper)
+        v0 = pre_pb.join(theta0, initial_starts(pre_pb, theta0, recording, pre_pb.data.n_samples))
+        v_pre, rms_pre, info = trust_region(pre_pb, v0, pre_lo, pre_hi, defect_weight=1e3)
+        theta0, prefit_states = pre_pb.split(v_pre)
+        attempts.append({"start": k + 1, "rms_normalised": rms_pre, **info})
+        if verbose:
+            print(f"  start {k + 1}, pre-fit: {info['status']} after {info['evaluations']} evaluations, "
+                  f"{info['seconds']:.1f} s, normalised rms residual {rms_pre:.3g}")
+        x_init = initial_starts(pb, theta0, recording, n_est)
+        for j, first in enumerate(pb.starts.tolist()):
+            if first in pre_pb.starts and first < pre_pb.starts[-1]:
+                x_init[j] = prefit_states[list(pre_pb.starts).index(first)]
+        v_ls, rms_ls, info = trust_region(pb, pb.join(theta0, x_init), lo, hi, defect_weight=1e4)
+        res = polish(pb, v_ls, lo, hi, max_iter, rtol, penalty=1e4)
+        rms = float(np.sqrt(res.objective / max(pb.n_residuals, 1)))
+        attempts[-1].update(fit_rms_normalised=rms, ipopt_status=res.status, ipopt_iterations=res.iterations)
+        fits.append((res.objective if np.isfinite(res.objective) else np.inf, k, res))
+        if verbose:
+            print(f"  start {k + 1}, fit: trust region {info['evaluations']} evaluations ({info['seconds']:.1f} s, "
+                  f"rms {rms_ls:.3g}), IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s), "
+                  f"normalised rms residual {rms:.3g}")
+        if np.isfinite(rms) and rms <= max(1.25 * rms_pre, rms_pre + 0.2):
+            break
+    pre_pb.close()
+    res = min(fits, key=lambda f: (f[0], f[1]))[2]
+    if not np.isfinite(res.objective):
+        pb.close()
+        raise FitError(f"{_name(recording)}: the model could not be integrated at the optimiser's last point "
+                       f"(IPOPT: {res.status}); check the rig file and the effects")
+    theta, _ = pb.split(res.v)
+    estimate = pb.params_of(theta)
+    uncertainty = covariance(pb, res.v)
+    pb.close()
+    x_boundary = uncertainty["states"][n_est - 1].copy()
+    validation = _validate(model, estimate, recording, n_est, x_boundary, delay_s, rig.stroke_m, rtol)
+    parameters = {}
+    for k, name in enumerate(free):
+        lo_b, hi_b = bounds[k]
+        parameters[name] = ParameterEstimate(
+            name=name, estimate=float(estimate[index[k]]), std=float(uncertainty["std"][k] * scales[k]),
+            start=float(p_start[index[k]]), lower=float(lo_b), upper=float(hi_b))
+    return FitResult.build(
+        recording=recording, rig=rig, model=model, free=free, parameters=parameters,
+        correlation=uncertainty["correlation"][:len(free), :len(free)], params_vector=estimate,
+        n_estimation=n_est, sigma=uncertainty["sigma"], residual_rms=uncertainty["rms"],
+        validation=validation, solver={"status": res.status, "success": res.success, "iterations": res.iterations,
+                                       "seconds": time.perf_counter() - started, "ipopt_seconds": res.seconds,
+                                       "max_defect": res.max_defect, "prefit_attempts": attempts,
+                                       "formulation": res.formulation,
+                                       "segments": int(pb.n_segments), "segment_samples": seg},
+        estimation_states=uncertainty["states"])
+
+
+# ----------------------------------------------------------------- pieces
+def _name(recording: Recording) -> str:
+    return str(recording.source or "the recording")
+
+
+def _resolve_rig(recording: Recording, rig) -> Rig:
+    if rig is None:
+        if not recording.rig:
+            raise FitError(f"{_name(recording)} names no rig in its metadata ('# rig: ...'); give --rig")
+        rig = recording.rig
+    if not isinstance(rig, Rig):
+        rig = load_rig(rig)
+    if recording.rig and recording.rig != rig.name:
+        # a user's own rig file may describe the rig under another name; the physical checks below decide
+        pass
+    if abs(recording.sample_time_s - rig.sample_time_s) > 1e-9 * rig.sample_time_s:
+        rig = rig.with_params({"sample_time_s": recording.sample_time_s})
+    stroke = rig.stroke_m
+    pos = recording.position_m
+    if np.nanmin(pos) < -0.01 * stroke or np.nanmax(pos) > 1.01 * stroke:
+        raise FitError(f"{_name(recording)}: positions span {np.nanmin(pos) * 1e3:.1f} to {np.nanmax(pos) * 1e3:.1f} mm "
+                       f"but rig {rig.name!r} has a stroke of {stroke * 1e3:.1f} mm; is this the right rig?")
+    supply = rig.params["supply_Pa"]
+    for name in ("pressure_a_Pa", "pressure_b_Pa"):
+        values = getattr(recording, name)
+        if values is not None and np.nanmax(values) > 1.2 * supply:
+            raise FitError(f"{_name(recording)}: {name} reaches {np.nanmax(values) / 1e5:.2f} bar, above rig "
+                           f"{rig.name!r}'s supply of {supply / 1e5:.2f} bar (absolute); is this the right rig?")
+    return rig
+
+
+def _default_free(model: ActuatorModel) -> list[str]:
+    names = list(DEFAULT_FREE)
+    for effect in model.effects:
+        names += [n for n in EFFECT_FREE.get(effect.name, ()) if n not in SEARCHED]
+    return names
+
+
+def _signals(recording: Recording, rig: Rig, model: ActuatorModel):
+    """Measured signals by state name, and the noise std used to weight each."""
+    signals = {"position_m": recording.position_m}
+    if recording.has_pressures:
+        signals["pressure_a_Pa"] = recording.pressure_a_Pa
+        signals["pressure_b_Pa"] = recording.pressure_b_Pa
+    sigma = {}
+    for name, values in signals.items():
+        # the rig file's sensor noise when it states one, else an estimate from the data
+        from_rig = float(rig.params.get("position_noise_std_m" if name == "position_m" else "pressure_noise_std_Pa", 0.0))
+        floor = rig.stroke_m * 1e-5 if name == "position_m" else 20.0
+        sigma[name] = max(from_rig if from_rig > 0 else noise_std_estimate(values), floor)
+    return signals, sigma
+
+
+def _check_excitation(recording: Recording, rig: Rig, n_est: int, sigma_position: float) -> None:
+    pos = recording.position_m[:n_est]
+    span = float(np.nanmax(pos) - np.nanmin(pos))
+    if span < 50 * sigma_position:
+        raise FitError(f"{_name(recording)}: the piston moves only {span * 1e3:.3f} mm in the estimation part "
+                       f"({50 * sigma_position * 1e3:.3f} mm needed, 50 times the sensor noise); such a recording "
+                       "does not excite the friction, mass and valve parameters")
+    cmd = recording.valve_cmd_V[:n_est]
+    if np.ptp(cmd) == 0.0:
+        raise FitError(f"{_name(recording)}: the valve command is constant in the estimation part; "
+                       "nothing excites the valve parameters")
+
+
+def _validate(model, params, recording: Recording, n_est: int, x0, delay_s, stroke_m, rtol) -> dict:
+    """Simulate the validation part with the recorded command from the fitted boundary state."""
+    from ..solver.sensitivity import SensitivitySimulator
+
+    sim = SensitivitySimulator(model, [], params, np.zeros(0), stroke_m, rtol)
+    start, stop = n_est - 1, recording.n_samples - 1
+    schedule = command_schedule(recording.time_s, recording.valve_cmd_V, start, stop, delay_s)
+    x, _ = sim.run(recording.time_s[start], x0, schedule, stop - start + 1, False)
+    x = x[1:]
+    y = recording.position_m[n_est:]
+    out = {"t_start_s": float(recording.time_s[n_est]), "t_end_s": float(recording.time_s[-1]),
+           "fit_percent": fit_percent(y, x[:, 0]), "states": x}
+    for name in ("pressure_a_Pa", "pressure_b_Pa"):
+        values = getattr(recording, name)
+        if values is not None:
+            out[f"fit_percent_{name}"] = fit_percent(values[n_est:], x[:, model.state_names.index(name)])
+    return out

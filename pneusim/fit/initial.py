@@ -1,0 +1,119 @@
+"""Initial guesses of the segment start states for the shooting problem."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from ..errors import PneusimError
+from ..recording import Recording
+from .shooting import ShootingProblem
+
+__all__ = ["initial_starts"]
+
+
+def initial_starts(pb: ShootingProblem, theta0, recording: Recording, stop: int) -> np.ndarray:
+    """Segment start states: the measured states (position, pressures when recorded) from the
+    measurement; the others estimated from the first segment's samples at the start, then carried
+    over from a simulation of the previous segment at ``theta0`` (a velocity from differentiated
+    noisy positions would be a worse guess than the simulated one)."""
+    ts = recording.sample_time_s
+    width = max(5, int(round(0.05 / ts)) | 1)
+    velocity = savgol_filter(recording.position_m[:stop], min(width, stop - (1 - stop % 2)), 2, deriv=1, delta=ts)
+    params = pb.params_of(theta0)
+    model = pb.model
+    x = model.initial_state(None, float(recording.position_m[0]),
+                            float(recording.valve_cmd_V[0]), params=dict(zip(model.param_names, params)))
+    sim = pb.sims[0]
+    sim.set_params(params)
+    starts = np.zeros((pb.n_segments, pb.n))
+    measured = {name: values for name, (values, _) in pb.data.signals.items()}
+    x_lo, x_hi = pb.state_bounds()
+    for j, k in enumerate(pb.starts):
+        x = np.clip(x, x_lo, x_hi)
+        if j == 0:
+            x[1] = velocity[k]
+        for name, values in measured.items():
+            if np.isfinite(values[k]):
+                x[model.state_names.index(name)] = values[k]
+        if j == 0:
+            x = _hidden_state(pb, j, x, params, grid=True)
+        starts[j] = x
+        try:
+            xs, _ = sim.run(pb.data.time_s[k], x, pb.schedules[j], pb.stops[j] - k + 1, False)
+            x = xs[-1]
+        except PneusimError:
+            pass
+    return starts
+
+
+#: widths of the prior on the first state: velocity m/s, pressures Pa (broad; data dominate when they speak)
+_PRIOR_WIDTH = {"velocity_m_per_s": 0.02, "pressure_a_Pa": 1e5, "pressure_b_Pa": 1e5}
+
+
+def _hidden_state(pb: ShootingProblem, j: int, x0: np.ndarray, params: np.ndarray, grid: bool) -> np.ndarray:
+    """The velocity and unmeasured chamber pressures at the start of segment ``j`` that best explain
+    its samples: from ``x0`` (and, with ``grid``, a coarse grid of pressures), trust-region least
+    squares on the segment's residuals with the parameters fixed.
+
+    A recording starts wherever the rig was: with a closed-centre valve near null the chamber
+    pressures can be anything the friction holds, so they are estimated, not assumed.  When the
+    piston rests, its samples say nothing about them; a broad prior around ``x0`` (the smoothed
+    velocity, pressures that balance the piston) then keeps the estimate physical, and it is
+    between the exhaust and the supply pressure.
+    """
+    from scipy.optimize import least_squares
+
+    model, sim = pb.model, pb.sims[0]
+    sim.set_params(params)
+    names = ["velocity_m_per_s"] + [s for s in ("pressure_a_Pa", "pressure_b_Pa") if s not in pb.data.signals]
+    hidden = [model.state_names.index(s) for s in names]
+    first, n_out = pb.starts[j], pb.stops[j] - pb.starts[j] + 1
+    t0 = pb.data.time_s[first]
+    outputs = [(model.state_names.index(name), values[first:first + n_out], sigma)
+               for name, (values, sigma) in pb.data.signals.items()]
+    value = dict(zip(model.param_names, params))
+    low = min(value["exhaust_Pa"], value["atmosphere_Pa"])
+    high = value["supply_Pa"]
+    x_lo, x_hi = pb.state_bounds()
+    x_lo[2:4], x_hi[2:4] = low, high
+    z_lo, z_hi = x_lo[hidden] / pb.x_scale[hidden], x_hi[hidden] / pb.x_scale[hidden]
+    z_prior = np.clip(x0[hidden] / pb.x_scale[hidden], z_lo, z_hi)
+    prior_width = np.array([_PRIOR_WIDTH[n] for n in names]) / pb.x_scale[hidden]
+    n_res = sum(o[1].size for o in outputs) + len(hidden)
+
+    def residuals(z, jac=False):
+        x = x0.copy()
+        x[hidden] = z * pb.x_scale[hidden]
+        try:
+            xs, S = sim.run(t0, x, pb.schedules[j], n_out, jac)
+        except PneusimError:
+            return (np.full(n_res, 1e6), np.zeros((n_res, len(hidden)))) if jac else np.full(n_res, 1e6)
+        r = np.concatenate([np.nan_to_num((xs[:, i] - y) / s) for i, y, s in outputs]
+                           + [(z - z_prior) / prior_width])
+        if not jac:
+            return r
+        cols = [pb.n_free + i for i in hidden]
+        J = np.concatenate([np.nan_to_num(S[:, i, :][:, cols] / s * np.isfinite(y)[:, None]) for i, y, s in outputs]
+                           + [np.diag(1.0 / prior_width)])
+        return r, J
+
+    def cost(z):
+        r = residuals(z)
+        return float(np.dot(r, r))
+
+    candidates = [z_prior]
+    grid = np.linspace(low, high, 6)[1:-1] if (grid and len(hidden) > 1) else []
+    for pa in grid:
+        for pb_ in (grid if len(hidden) > 2 else [None]):
+            z = z_prior.copy()
+            z[1] = pa / pb.x_scale[hidden[1]]
+            if pb_ is not None:
+                z[2] = pb_ / pb.x_scale[hidden[2]]
+            candidates.append(z)
+    best = np.clip(min(candidates, key=cost), z_lo, z_hi)
+    fit = least_squares(lambda z: residuals(z), best, jac=lambda z: residuals(z, True)[1], method="trf",
+                        bounds=(z_lo, z_hi), max_nfev=50)
+    x = x0.copy()
+    x[hidden] = (fit.x if cost(fit.x) <= cost(best) else best) * pb.x_scale[hidden]
+    return x

@@ -1,0 +1,190 @@
+"""The result of a physical parameter fit: estimates, uncertainty, validation, warnings."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..model import ActuatorModel, make_effect
+from ..recording import Recording
+from ..rig import Rig
+
+__all__ = ["FitResult", "ParameterEstimate"]
+
+#: a parameter whose standard error exceeds this fraction of its value is "poorly determined"
+RELATIVE_STD_WARNING = 0.5
+#: correlations beyond this make two parameters indistinguishable from the recording
+CORRELATION_WARNING = 0.99
+
+
+@dataclass
+class ParameterEstimate:
+    """One fitted parameter (SI units, the rig file's name)."""
+
+    name: str
+    estimate: float
+    std: float
+    start: float
+    lower: float
+    upper: float
+
+    @property
+    def relative_std(self) -> float:
+        return abs(self.std / self.estimate) if self.estimate != 0 else math.inf
+
+    @property
+    def at_bound(self) -> bool:
+        span = self.upper - self.lower
+        return min(self.estimate - self.lower, self.upper - self.estimate) <= 1e-4 * span
+
+    def to_dict(self) -> dict:
+        return {"estimate": self.estimate, "std": _finite(self.std), "start": self.start,
+                "bounds": [self.lower, self.upper]}
+
+
+@dataclass
+class FitResult:
+    """A fitted physical model.
+
+    Attributes
+    ----------
+    parameters : dict of ParameterEstimate
+        Free parameters by name, with standard errors from the Gauss-Newton
+        covariance (each signal weighted by its residual standard deviation).
+    correlation : ndarray (n_free, n_free)
+        Correlation matrix of the estimates, ``free`` order.
+    rig_ : Rig
+        The rig with the fitted rig parameters.
+    effects_ : list of Effect
+        The effects with their fitted parameters.
+    validation : dict
+        ``t_start_s``, ``t_end_s``, ``fit_percent`` (position, MATLAB compare fit
+        of the simulation with the recorded command on the validation part,
+        which the fit never saw), and the pressures' fits when recorded.
+    warnings : list of str
+        Parameters the recording does not pin down (huge variance, correlation
+        above 0.99, at a bound).
+    solver : dict
+        IPOPT status, iterations, time.
+    """
+
+    recording_name: str
+    rig: Rig
+    rig_: Rig
+    model: ActuatorModel
+    effects_: list
+    free: list
+    parameters: dict
+    correlation: np.ndarray
+    params_vector: np.ndarray
+    n_estimation: int
+    sigma: dict
+    residual_rms: dict
+    validation: dict
+    solver: dict
+    warnings: list = field(default_factory=list)
+    recording: Recording | None = None
+    estimation_states: np.ndarray | None = None
+
+    @classmethod
+    def build(cls, *, recording: Recording, rig: Rig, model: ActuatorModel, free, parameters, correlation,
+              params_vector, n_estimation, sigma, residual_rms, validation, solver, estimation_states):
+        rig_updates = {k: p.estimate for k, p in parameters.items() if k in rig.params}
+        effects = []
+        for effect in model.effects:
+            values = dict(effect.values)
+            for key in values:
+                qualified = f"{effect.name}.{key}"
+                if qualified in parameters:
+                    values[key] = parameters[qualified].estimate
+            effects.append(make_effect(effect.name, **effect.option_values, **values))
+        result = cls(recording_name=str(recording.source or "recording"), rig=rig, rig_=rig.with_params(rig_updates),
+                     model=model, effects_=effects, free=list(free), parameters=parameters,
+                     correlation=np.asarray(correlation), params_vector=np.asarray(params_vector),
+                     n_estimation=n_estimation, sigma=sigma, residual_rms=residual_rms, validation=validation,
+                     solver=solver, recording=recording, estimation_states=estimation_states)
+        result.warnings = result._identifiability_warnings()
+        return result
+
+    # ----------------------------------------------------------------- access
+    @property
+    def estimates(self) -> dict[str, float]:
+        """``{name: fitted value}`` in SI units."""
+        return {k: p.estimate for k, p in self.parameters.items()}
+
+    @property
+    def fit_percent(self) -> float:
+        """Validation fit of the position, %."""
+        return float(self.validation["fit_percent"])
+
+    def _identifiability_warnings(self) -> list[str]:
+        out = []
+        for name, p in self.parameters.items():
+            if not math.isfinite(p.std):
+                out.append(f"{name} is not identifiable from this recording (the data leave it unconstrained)")
+            elif p.relative_std > RELATIVE_STD_WARNING:
+                out.append(f"{name} is poorly determined: standard error {p.relative_std:.0%} of its value")
+            if p.at_bound:
+                out.append(f"{name} = {p.estimate:.4g} sits at its bound [{p.lower:.4g}, {p.upper:.4g}]: "
+                           "the data push it beyond the physical range")
+        names = self.free
+        for i in range(len(names)):
+            for j in range(i + 1, len(names)):
+                r = self.correlation[i, j]
+                if np.isfinite(r) and abs(r) > CORRELATION_WARNING:
+                    out.append(f"{names[i]} and {names[j]} are correlated (r = {r:+.3f}): this recording "
+                               "cannot tell them apart")
+        return out
+
+    # ------------------------------------------------------------------ output
+    def to_dict(self) -> dict:
+        """The JSON result (``parameters``, ``correlation``, ``validation``, ``solver``, ``warnings`` ...)."""
+        validation = {k: _finite(v) for k, v in self.validation.items() if not isinstance(v, np.ndarray)}
+        solver = {k: v for k, v in self.solver.items() if k != "prefit_attempts"}
+        solver["prefit_attempts"] = [{k: (v.tolist() if isinstance(v, np.ndarray) else _finite(v))
+                                      for k, v in a.items() if k != "theta"}
+                                     for a in self.solver.get("prefit_attempts", [])]
+        return {
+            "recording": self.recording_name,
+            "rig": self.rig.name,
+            "effects": [e.to_text() for e in self.effects_],
+            "parameters": {k: p.to_dict() for k, p in self.parameters.items()},
+            "correlation": {"names": list(self.free),
+                            "matrix": [[_finite(float(v)) for v in row] for row in self.correlation]},
+            "noise_std": {k: float(v) for k, v in self.sigma.items()},
+            "estimation": {"t_start_s": float(self.recording.time_s[0]) if self.recording is not None else 0.0,
+                           "t_end_s": float(self.recording.time_s[self.n_estimation - 1])
+                           if self.recording is not None else None,
+                           "samples": int(self.n_estimation)},
+            "validation": validation,
+            "solver": solver,
+            "warnings": list(self.warnings),
+        }
+
+    def write_json(self, path) -> Path:
+        path = Path(path)
+        path.write_text(json.dumps(self.to_dict(), indent=1))
+        return path
+
+    def summary(self) -> str:
+        """A table of the estimates for the terminal."""
+        lines = [f"{'parameter':<44} {'start':>11} {'estimate':>11} {'std':>10}"]
+        for name, p in self.parameters.items():
+            std = f"{p.std:.3g}" if math.isfinite(p.std) else "inf"
+            lines.append(f"{name:<44} {p.start:>11.4g} {p.estimate:>11.4g} {std:>10}")
+        v = self.validation
+        lines.append(f"validation {v['t_start_s']:.3f}-{v['t_end_s']:.3f} s: fit {v['fit_percent']:.2f} % (position)")
+        lines.append(f"IPOPT: {self.solver['status']} after {self.solver['iterations']} iterations; "
+                     f"{self.solver['seconds']:.1f} s in all")
+        lines += [f"warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+
+def _finite(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

@@ -1,0 +1,111 @@
+"""Physical parameter fit: recovery of known parameters, honest standard errors, effects, practice data.
+
+Recordings are simulated with parameters 20-30 % away from the rig file (the fit starts from the
+rig file), on both rigs, in open and closed loop, with and without chamber pressures.
+"""
+
+import itertools
+import json
+
+import numpy as np
+import pytest
+
+from pneusim.experiment import standard_experiment
+from pneusim.fit import fit_recording
+from pneusim.model import make_effect
+from pneusim.recording import read_recording
+from pneusim.rig import load_rig
+from pneusim.simulate import simulate
+
+#: the true rig: each default free parameter moved away from the data sheet
+FACTORS = {"valve_sonic_conductance_m3_per_s_Pa": 0.8, "valve_critical_pressure_ratio": 0.26 / 0.3,
+           "friction_static_N": 1.2, "friction_coulomb_N": 0.9, "friction_stribeck_velocity_m_per_s": 1.3,
+           "friction_viscous_N_s_per_m": 1.2, "moving_mass_kg": 1.25}
+CASES = list(itertools.product(["paper2-enfield", "paper1-mre"], ["closed", "open"], [True, False]))
+
+
+def _recording(rig_name, loop, pressures, seed, noise_scale, effects=(), factors=FACTORS, duration=None):
+    rig = load_rig(rig_name)
+    truth = {k: rig[k] * f for k, f in factors.items()}
+    true_rig = rig.with_params(truth)
+    kind = "multisine" if (loop == "closed" and rig_name == "paper2-enfield") else "pulses"
+    duration = duration or (30.0 if rig_name == "paper2-enfield" else 6.0)
+    exp = standard_experiment(true_rig, kind, duration, loop, seed=seed)
+    # noise-free data are integrated tightly: their only error is then the 16-bit position converter
+    sim = simulate(true_rig, exp, effects, seed=seed + 100, noise_scale=noise_scale, record_pressures=pressures,
+                   rtol=1e-9 if noise_scale == 0 else 1e-6)
+    return rig, truth, sim.recording
+
+
+@pytest.mark.parametrize("rig_name,loop,pressures", CASES)
+def test_noise_free_recovery_within_one_percent(rig_name, loop, pressures):
+    rig, truth, rec = _recording(rig_name, loop, pressures, seed=1, noise_scale=0.0)
+    result = fit_recording(rec, rig, rtol=1e-8)      # the fit's integration error must stay below the data's
+    errors = {k: result.estimates[k] / truth[k] - 1.0 for k in truth}
+    assert max(abs(e) for e in errors.values()) < 0.01, errors
+    assert result.fit_percent > 99.0
+
+
+def test_noisy_truth_inside_three_sigma_for_ninety_percent():
+    """Realistic sensor noise (the rig files' 0.02 % of stroke, 300 Pa), two seeds per case."""
+    inside, total, worst = 0, 0, []
+    for (rig_name, loop, pressures), seed in itertools.product(CASES, (11, 12)):
+        rig, truth, rec = _recording(rig_name, loop, pressures, seed=seed, noise_scale=1.0)
+        result = fit_recording(rec, rig)
+        for name, p in result.parameters.items():
+            z = (p.estimate - truth[name]) / p.std
+            inside += abs(z) <= 3.0
+            total += 1
+            worst.append((abs(z), rig_name, loop, pressures, seed, name))
+    assert inside / total >= 0.9, sorted(worst)[-10:]
+
+
+@pytest.mark.parametrize("effect,parameter,true_value,rig_name,loop", [
+    ("valve_deadband", "deadband_V", 0.3, "paper2-enfield", "open"),
+    ("friction_asymmetry", "retract_factor", 1.6, "paper1-mre", "closed"),
+    ("external_load", "force_N", -60.0, "paper2-enfield", "closed"),
+    ("valve_offset", "offset_V", 0.15, "paper1-mre", "open"),
+])
+def test_effect_parameter_recovered(effect, parameter, true_value, rig_name, loop):
+    truth_effect = make_effect(effect, **{parameter: true_value})
+    rig, truth, rec = _recording(rig_name, loop, True, seed=3, noise_scale=1.0, effects=[truth_effect])
+    start_effect = make_effect(effect)            # the effect's default as the starting value
+    qualified = f"{effect}.{parameter}"
+    free = list(FACTORS) + [qualified]
+    result = fit_recording(rec, rig, [start_effect], free=free)
+    p = result.parameters[qualified]
+    assert abs(p.estimate - true_value) <= 3.0 * p.std, (p.estimate, p.std)
+    assert abs(p.estimate / true_value - 1.0) < 0.05
+    fitted = {e.name: e for e in result.effects_}[effect]
+    assert fitted.values[parameter] == pytest.approx(p.estimate)
+
+
+@pytest.mark.parametrize("name", ["practice_04.csv", "practice_13.csv", "practice_16.csv", "practice_20.csv"])
+def test_practice_controls_fit_to_noise_level(shared_dir, name):
+    """The practice recordings that hold no effect: the nominal model explains them up to noise."""
+    answers = json.loads((shared_dir / "practice" / "answers.json").read_text())["cases"]
+    assert answers[name]["effects"] == []
+    rec = read_recording(shared_dir / "practice" / name)
+    result = fit_recording(rec)
+    assert result.fit_percent > 99.0
+    noise = load_rig(rec.rig)["position_noise_std_m"]
+    assert result.sigma["position_m"] < 1.2 * noise       # residual at the sensor noise level
+    plant = answers[name]["plant"]
+    for key, p in result.parameters.items():
+        assert abs(p.estimate / plant[key] - 1.0) < 0.1, (key, p.estimate, plant[key])
+
+
+def test_json_result_has_the_documented_fields(tmp_path):
+    rig, truth, rec = _recording("paper2-enfield", "open", True, seed=4, noise_scale=1.0, duration=20.0)
+    result = fit_recording(rec, rig)
+    data = json.loads(result.write_json(tmp_path / "fit.json").read_text())
+    assert set(data["parameters"]) == set(FACTORS)
+    for entry in data["parameters"].values():
+        assert entry["std"] > 0 and np.isfinite(entry["estimate"])
+    matrix = np.array(data["correlation"]["matrix"], float)
+    assert matrix.shape == (7, 7)
+    assert np.allclose(np.diag(matrix), 1.0) and np.allclose(matrix, matrix.T)
+    v = data["validation"]
+    assert v["t_start_s"] == pytest.approx(rec.time_s[int(round(0.7 * rec.n_samples))])
+    assert v["t_end_s"] == pytest.approx(rec.time_s[-1]) and v["fit_percent"] > 99.0
+    assert data["solver"]["status"] and data["solver"]["seconds"] > 0
