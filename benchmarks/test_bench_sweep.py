@@ -1,10 +1,19 @@
-"""Sweep throughput (runs per second) locally with 1 and 2 worker processes and through Dask.
+"""Sweep throughput (runs per second): in this process, 1 and 2 local worker processes, and Dask.
 
-Each benchmark runs the 50-run tiny sweep of ``tests/scenarios/data/tiny-sweep.toml``
-(2 s open-loop simulations + ARX + RLS, one run that raises) into a fresh
-directory; ``extra_info["runs_per_s"]`` is the throughput, worker start-up included.
+Every benchmark runs the 50-run sweep of ``tests/scenarios/data/tiny-sweep.toml`` (open-loop doublets on
+the paper 2 rig, ARX + in-loop RLS, one run that raises) with each run lengthened to 8 s (800 samples),
+into a fresh directory, so nothing is skipped.  Modes:
 
-    pytest benchmarks/test_bench_sweep.py --benchmark-only
+* ``inprocess``: ``--workers 0``, the runs one after the other in this process (the peer of the others);
+* ``local-1``, ``local-2``: a ``ProcessPoolExecutor`` of 1 or 2 processes, start-up included;
+* ``dask-local-2``: ``--dask local --workers 2``, the LocalCluster's start-up included;
+* ``dask-running-2``: a running LocalCluster of 2 loopback workers (``--dask tcp://...``), the steady
+  throughput of a cluster that already exists.
+
+``extra_info["runs_per_s"]`` is the throughput and ``extra_info["speedup_vs_local_1"]`` its ratio to
+``local-1`` measured in the same session.  Run with ``-s`` to see the summary table::
+
+    pytest benchmarks/test_bench_sweep.py --benchmark-only -s
 """
 
 from pathlib import Path
@@ -14,20 +23,53 @@ import pytest
 from pneusim.scenario.sweep import load_sweep, run_sweep
 
 SWEEP = Path(__file__).resolve().parents[1] / "tests" / "scenarios" / "data" / "tiny-sweep.toml"
+MODES = ["inprocess", "local-1", "local-2", "dask-local-2", "dask-running-2"]
+RESULTS: dict[str, float] = {}
 
 
-@pytest.mark.parametrize("mode", ["local-1", "local-2", "dask-local-2"])
-def test_sweep_throughput(benchmark, tmp_path, mode):
-    sweep = load_sweep(SWEEP)
+@pytest.fixture(scope="module")
+def sweep(tmp_path_factory):
+    sw = load_sweep(SWEEP)
+    sw["base"] = {**sw["base"], "experiment.duration_s": 8.0}
+    run_sweep({**sw, "random": {}, "points": [{}]}, tmp_path_factory.mktemp("warmup"), workers=0,
+              progress=False)                                  # imports and compiled code, once
+    yield sw
+    if RESULTS:
+        base = RESULTS.get("local-1")
+        print("\nsweep throughput, 50 runs of 8 s (800 samples) each:")
+        for mode in MODES:
+            if mode in RESULTS:
+                ratio = f"{RESULTS[mode] / base:5.2f} x local-1" if base else ""
+                print(f"  {mode:15s} {RESULTS[mode]:6.2f} runs/s  {ratio}")
+
+
+@pytest.fixture(scope="module")
+def running_cluster():
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, host="127.0.0.1", processes=True,
+                                  dashboard_address=None) as cluster:
+        yield cluster.scheduler_address
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_sweep_throughput(benchmark, tmp_path, sweep, request, mode):
     counter = iter(range(1000))
+    address = request.getfixturevalue("running_cluster") if mode == "dask-running-2" else None
 
     def once():
         out = tmp_path / f"run{next(counter)}"
-        if mode.startswith("dask"):
+        if mode == "inprocess":
+            return run_sweep(sweep, out, workers=0, progress=False)
+        if mode == "dask-local-2":
             return run_sweep(sweep, out, workers=2, dask="local", progress=False)
+        if mode == "dask-running-2":
+            return run_sweep(sweep, out, dask=address, progress=False)
         return run_sweep(sweep, out, workers=int(mode[-1]), progress=False)
 
     info = benchmark.pedantic(once, rounds=2, iterations=1)
-    assert info["n_runs"] == 50 and info["n_failed"] == 1
+    assert info["n_runs"] == 50 and info["n_failed"] == 1 and info["n_done_before"] == 0
+    RESULTS[mode] = info["n_runs"] / benchmark.stats.stats.mean
     benchmark.extra_info["runs"] = info["n_runs"]
-    benchmark.extra_info["runs_per_s"] = info["n_runs"] / benchmark.stats.stats.mean
+    benchmark.extra_info["runs_per_s"] = RESULTS[mode]
+    if "local-1" in RESULTS:
+        benchmark.extra_info["speedup_vs_local_1"] = RESULTS[mode] / RESULTS["local-1"]

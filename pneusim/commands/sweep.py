@@ -2,22 +2,36 @@
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
+
+EXAMPLES = """examples:
+  pneusim sweep scenarios/sweep-paper2.toml --out results/sweep-paper2              # local processes
+  pneusim sweep scenarios/sweep-paper2.toml --out results/sweep-paper2 --workers 0  # in this process
+  pneusim sweep scenarios/sweep-paper2.toml --dask local --workers 4                # a loopback Dask cluster
+  pneusim sweep scenarios/sweep-paper2.toml --dask tcp://10.0.0.5:8786              # a running scheduler
+
+Writes into DIR: sweep.csv and sweep.parquet (one row per run and identifier reading: run_id, seed, one
+column per varied key, identifier, reading, status, error, metrics, times), summary-KEY.png (fit against
+each varied key) and runs/RUN_ID.json (each run's result).  Runs already stored in DIR/runs are skipped,
+so a sweep restarted after a crash only runs what is missing; a run that raises is recorded with its
+error and the sweep goes on.  The schema of sweep files is documented in scenarios/README.md."""
 
 
 def register(sub) -> None:
     p = sub.add_parser("sweep", help="run a scenario over a grid or random draws of its keys",
-                       description="Run a sweep file (see scenarios/README.md): one tidy table (sweep.csv, "
-                                   "sweep.parquet) with one row per run and identifier, plus summary plots. "
-                                   "Runs already stored in OUT/runs are skipped.")
-    p.add_argument("sweep", metavar="SWEEP", help="sweep file (.toml)")
+                       description="Run a sweep file: the scenario it names, once per point of its grid or "
+                                   "random draws and per seed, and one tidy table of the results.",
+                       epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("sweep", metavar="SWEEP", help="sweep file (.toml), see scenarios/README.md")
     p.add_argument("--out", metavar="DIR", help="output directory (default: results/sweep-<name>)")
-    p.add_argument("--workers", type=int, default=None,
+    p.add_argument("--workers", metavar="N", type=int, default=None,
                    help="local processes, or Dask workers with --dask local (default: CPU count; 0: in-process)")
     p.add_argument("--dask", metavar="ADDRESS", default=None,
-                   help="send runs to a Dask scheduler (tcp://HOST:PORT) or 'local' for a loopback LocalCluster")
-    p.add_argument("--retry-failed", action="store_true", help="re-run the runs stored as failed")
-    p.add_argument("--no-progress", action="store_true")
+                   help="send the runs to a Dask distributed scheduler (tcp://HOST:PORT), or 'local' to start "
+                        "a loopback LocalCluster of --workers processes")
+    p.add_argument("--retry-failed", action="store_true", help="run again the runs stored as failed")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
 
@@ -27,10 +41,13 @@ def run(args) -> int:
 
     if args.workers is not None and args.workers < 0:
         raise PneusimError(f"--workers must be >= 0, got {args.workers}")
+    if args.dask == "local" and args.workers == 0:
+        raise PneusimError("--dask local needs --workers >= 1 (the number of Dask worker processes)")
     sweep = load_sweep(args.sweep)
     out = Path(args.out or Path("results") / f"sweep-{sweep['name']}")
     info = run_sweep(sweep, out, workers=args.workers, dask=args.dask, progress=not args.no_progress,
                      retry_failed=args.retry_failed)
+    rate = f"{info['runs_per_s']:.2f} runs/s" if info["runs_per_s"] == info["runs_per_s"] else "nothing to run"
     print(f"wrote {out}/sweep.csv and sweep.parquet: {info['n_runs']} runs ({info['n_done_before']} done before, "
-          f"{info['n_failed']} failed), {len(info['table'])} rows, {info['runs_per_s']:.2f} runs/s")
+          f"{info['n_failed']} failed), {len(info['table'])} rows, {rate}")
     return 0

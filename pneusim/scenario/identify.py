@@ -18,17 +18,11 @@ import traceback
 import numpy as np
 from scipy import signal as sps
 
+from ..metrics import fit_percent
+from .analysis import band_behaviour, band_response, free_run, s_reading, z_properties
+
 __all__ = ["fit_percent", "error_stats", "run_blackbox", "score_published_z", "score_published_s",
            "run_physical_fit", "not_available"]
-
-
-def fit_percent(y, yhat) -> float:
-    """``100 (1 - ||y - yhat|| / ||y - mean(y)||)`` over the finite samples [%]."""
-    y, yhat = np.asarray(y, float), np.asarray(yhat, float)
-    ok = np.isfinite(y) & np.isfinite(yhat)
-    y, yhat = y[ok], yhat[ok]
-    den = np.linalg.norm(y - y.mean())
-    return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / den)) if den > 0 else float("nan")
 
 
 def error_stats(y, yhat) -> dict:
@@ -39,6 +33,10 @@ def error_stats(y, yhat) -> dict:
     y, yhat = np.asarray(y, float), np.asarray(yhat, float)
     ok = np.isfinite(y) & np.isfinite(yhat)
     y, yhat = y[ok], yhat[ok]
+    if not ok.any():
+        nan = float("nan")
+        return {"n_scored": 0, **{k: nan for k in ("square_error", "mse", "rmse", "error_std", "fit_percent")},
+                **{f"{a}_{b}": nan for a in ("actual", "predicted", "error") for b in ("min", "max", "std")}}
     e = y - yhat
     out = {"n_scored": int(ok.sum()), "square_error": float(np.mean(e ** 2)), "mse": float(np.mean(e ** 2)),
            "rmse": float(np.sqrt(np.mean(e ** 2))), "error_std": float(np.std(e)), "fit_percent": fit_percent(y, yhat)}
@@ -84,7 +82,7 @@ def run_blackbox(ident: dict, est: tuple, val: tuple, ts: float) -> list[dict]:
             yhat = np.asarray(sysid.simulate(model, d_val), float).ravel()
             init = "zero"
         row = {"identifier": ident["name"], "kind": ident["kind"], "reading": f"simulation, {init} initial state",
-               "status": "ok", **error_stats(val[0], yhat), "_yhat": yhat}
+               "status": "ok", **error_stats(val[0], yhat), "_yhat": yhat, **_model_g(model)}
         if hasattr(sysid, "compare"):
             try:
                 row["fit_percent_sysid_compare"] = float(sysid.compare(d_val, model))
@@ -94,6 +92,17 @@ def run_blackbox(ident: dict, est: tuple, val: tuple, ts: float) -> list[dict]:
     except Exception as exc:  # noqa: BLE001 - an identifier failing must not stop the scenario
         return [not_available(ident, f"{type(exc).__name__}: {exc} "
                               f"({traceback.extract_tb(exc.__traceback__)[-1].name})", status="failed")]
+
+
+def _model_g(model) -> dict:
+    """The model's input-output transfer function ``G = B/(A F)`` (descending powers of z^-1) as
+    ``model_num``, ``model_den``, so that a reader can re-simulate it; empty if sysid cannot say."""
+    try:
+        poly = model if hasattr(model, "G") else model.to_idpoly()
+        num, den = poly.G()
+        return {"model_num": [float(v) for v in np.ravel(num)], "model_den": [float(v) for v in np.ravel(den)]}
+    except Exception:  # noqa: BLE001 - the polynomials are extra information
+        return {}
 
 
 def _published_one_step(num, den, y, u, input_delay):
@@ -116,7 +125,7 @@ def score_published_z(ident: dict, y: np.ndarray, u: np.ndarray, warmup: int = 0
     Two readings: *as printed* (the numerator's leading term multiplies ``u(k)``)
     and *eq. 6* (regressor ``u(k-1) ... u(k-n)``, one sample later), each for
     every input offset in ``ident['input_offsets']`` (e.g. the valve null).  The free run
-    starts from the first sample (deviation variables).
+    (``_free``) starts from the first sample (deviation variables), so the offset does not change it.
     """
     rows = []
     num, den = ident["num"], ident["den"]
@@ -127,12 +136,12 @@ def score_published_z(ident: dict, y: np.ndarray, u: np.ndarray, warmup: int = 0
         yhat = _published_one_step(num, den, y, u - offset, delay)
         yhat[:warmup] = np.nan
         row = {"identifier": ident["name"], "kind": ident["kind"], "reading": reading, "status": "ok",
+               "input_offset": float(offset), "input_delay_samples": delay,
                **error_stats(y, yhat), "_yhat": yhat}
-        nn = np.concatenate((np.zeros(len(den) - len(num) + delay), num))
-        free = y[0] + sps.lfilter(nn, den, u - u[0])  # deviation from the first sample
+        free = free_run(num, den, y, u, delay)
         row["free_run_fit_percent"] = fit_percent(y, free) if np.all(np.isfinite(free)) else float("nan")
-        row["poles_abs_max"] = float(np.max(np.abs(np.roots(den))))
-        row["dc_gain"] = float(np.sum(num) / np.sum(den)) if abs(np.sum(den)) > 0 else float("inf")
+        row["_free"] = free
+        row.update(z_properties(num, den))
         rows.append(row)
     return rows
 
@@ -140,34 +149,41 @@ def score_published_z(ident: dict, y: np.ndarray, u: np.ndarray, warmup: int = 0
 _UNIT_S = {"s": lambda ts: 1.0, "ms": lambda ts: 1e-3, "sample": lambda ts: ts}
 
 
-def score_published_s(ident: dict, val: tuple, ts: float, record_s: float | None = None) -> list[dict]:
+def score_published_s(ident: dict, val: tuple, ts: float, record_s: float | None = None,
+                      band_Hz=None, output_per_m: float | None = None) -> list[dict]:
     """Paper 2 equation 4 under each time-unit reading, simulated (zero state) on the validation data.
 
     If ``s`` and the delay are in units of ``T`` seconds, ``G_T(s_T)`` becomes
     ``G(s T)`` in seconds (coefficient of ``s^i`` times ``T^i``) with a delay of
-    ``delay T`` seconds.  The row records poles in rad/s, the DC gain, the
-    slowest time constant against the record length ``record_s`` (default: the
-    validation data's), and the fit.
+    ``delay T`` seconds.  The row records poles in rad/s, the DC gain, the damping of
+    complex poles, the slowest time constant against the record length ``record_s``
+    (default: the validation data's), the frequency response over ``band_Hz`` (the
+    excitation band) with what it behaves like there, and the fit.  With ``output_per_m``
+    (output units per metre of piston travel) the integrator-like gain is also given in
+    mm/s per input unit.
     """
     y, u = val
     rows = []
     record_s = len(y) * ts if record_s is None else float(record_s)  # the whole experiment, for the behaviour
     for unit in ident.get("time_units", ["s"]):
         T = _UNIT_S[unit](ts)
-        num = np.asarray(ident["num"], float)
-        den = np.asarray(ident["den"], float)
-        num_s = num * T ** np.arange(len(num) - 1, -1, -1)
-        den_s = den * T ** np.arange(len(den) - 1, -1, -1)
-        num_s, den_s = num_s / den_s[0], den_s / den_s[0]
+        num_s, den_s = s_reading(ident["num"], ident["den"], T)
         delay_s = float(ident.get("delay", 0.0)) * T
         nd = int(round(delay_s / ts))
         poles = np.roots(den_s)
-        slowest = float(1.0 / np.min(np.abs(poles.real))) if np.all(poles.real < 0) else float("inf")
+        stable = bool(np.all(poles.real < 0))
+        slowest = float(1.0 / np.min(np.abs(poles.real))) if stable else float("inf")
+        cplx = [p for p in poles if abs(p.imag) > 1e-12]
+        band = band_response(num_s, den_s, band_Hz or [])
+        if output_per_m:
+            for b in band:
+                b["velocity_gain_mm_per_s"] = 1e3 * b["gain_x_omega"] / output_per_m
         row = {"identifier": ident["name"], "kind": ident["kind"], "reading": f"time unit = {unit}",
                "status": "ok", "time_unit_s": T, "delay_s": delay_s, "delay_samples": nd,
                "dc_gain": float(num_s[-1] / den_s[-1]), "poles_rad_per_s": [str(complex(p)) for p in poles],
-               "slowest_time_constant_s": slowest, "record_s": record_s,
-               "stable": bool(np.all(poles.real < 0))}
+               "damping_ratio_min": float(min(-p.real / abs(p) for p in cplx)) if cplx else None,
+               "slowest_time_constant_s": slowest, "record_s": record_s, "stable": stable,
+               "band": band, "behaviour": band_behaviour(band, stable, delay_s, record_s)}
         if nd >= len(y):
             row.update(status="ok", fit_percent=float("nan"), reason="the delay is longer than the record")
             rows.append(row)
@@ -181,32 +197,33 @@ def score_published_s(ident: dict, val: tuple, ts: float, record_s: float | None
     return rows
 
 
-def run_physical_fit(ident: dict, est_rec, val_rec, rig, effects, to_output, val_y) -> list[dict]:
-    """Fit the physical model (``pneusim.fit.fit_recording``) on the estimation recording,
-    re-run the validation experiment on the fitted rig and score its output."""
+def run_physical_fit(ident: dict, rec, n_est: int, rig, effects, to_output, val_y) -> list[dict]:
+    """Fit the physical model (:func:`pneusim.fit.fit_recording`) on the estimation part and score it
+    the way the black-box models are scored: the fitted rig re-runs the validation part's experiment
+    (closed loop: the reference through the controller, as the black-box models map the scenario's
+    input to the position).  The row also carries the fit's own validation (the recorded command
+    simulated from the state the fit estimated at the split), estimates with standard errors, and
+    the fit's identifiability warnings.
+    """
+    from ..errors import PneusimError
+    from ..fit import fit_recording
+    from ..simulate import rerun_recording
+
     try:
-        from ..fit import fit_recording
-    except ImportError as exc:
-        return [not_available(ident, f"pneusim.fit.fit_recording is not importable ({exc})")]
-    try:
-        from ..simulate import rerun_recording
-        result = fit_recording(est_rec, rig)
-        estimates = getattr(result, "estimates", None) or getattr(result, "params", None)
-        if estimates is None and isinstance(result, dict):
-            estimates = result.get("estimates")
-        if not isinstance(estimates, dict):
-            return [not_available(ident, f"fit result {type(result).__name__} has no 'estimates' mapping",
-                                  status="failed")]
-        estimates = {k: float(getattr(v, "value", v)) for k, v in estimates.items() if k in rig.params}
-        fitted = rig.with_params(estimates)
-        sim = rerun_recording(fitted, val_rec, effects, noise_scale=0.0)
-        yhat = to_output(sim.recording.position_m)
-        row = {"identifier": ident["name"], "kind": ident["kind"], "reading": "fitted rig, validation re-run",
-               "status": "ok", **error_stats(val_y, yhat), "_yhat": yhat,
-               "estimates": {k: float(v) for k, v in estimates.items()}}
-        return [row]
-    except Exception as exc:  # noqa: BLE001
-        return [not_available(ident, f"{type(exc).__name__}: {exc}", status="failed")]
+        result = fit_recording(rec, rig, effects, validation_fraction=(rec.n_samples - n_est) / rec.n_samples)
+        val_rec = rec.slice(float(rec.time_s[n_est]) - 0.5 * rec.sample_time_s, None)
+        sim = rerun_recording(result.rig_, val_rec, result.effects_, noise_scale=0.0)
+    except PneusimError as exc:
+        return [not_available(ident, str(exc), status="failed")]
+    yhat = to_output(sim.recording.position_m)
+    return [{"identifier": ident["name"], "kind": ident["kind"],
+             "reading": "fitted rig, validation experiment re-run", "status": "ok",
+             **error_stats(val_y, yhat), "_yhat": yhat,
+             "fit_percent_recorded_command": result.fit_percent,
+             "fit_seconds": result.solver["seconds"], "solver_status": result.solver["status"],
+             "estimates": {k: {"estimate": p.estimate, "std": p.std, "start": p.start}
+                           for k, p in result.parameters.items()},
+             "fit_warnings": list(result.warnings)}]
 
 
 def clean_row(row: dict) -> dict:

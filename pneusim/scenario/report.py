@@ -8,9 +8,10 @@ paper-specific tables (``scenario.layout``) live in :mod:`.tables`.
 from __future__ import annotations
 
 import base64
+import csv
 import html
 import json
-import re
+import shlex
 from pathlib import Path
 
 import numpy as np
@@ -18,13 +19,10 @@ import numpy as np
 from ..recording import write_recording
 from .identify import clean_row
 from .runner import ScenarioResult
-from .tables import layout_blocks, rows_table
+from .figures import make_figures, slug
+from .tables import layout_blocks, rows_table, unit_label
 
 __all__ = ["write_report", "metrics_dict"]
-
-
-def _slug(text: str) -> str:
-    return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-")
 
 
 def metrics_dict(result: ScenarioResult, files: dict) -> dict:
@@ -40,90 +38,26 @@ def metrics_dict(result: ScenarioResult, files: dict) -> dict:
             "timings_s": result.timings_s, "files": files}
 
 
-def _figure_prediction(path, t, y, yhat, title, unit):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(2, 1, sharex=True, figsize=(9, 4.6), gridspec_kw={"height_ratios": [2, 1]})
-    ax[0].plot(t, y, lw=0.9, label="actual output")
-    ax[0].plot(t, yhat, lw=0.8, ls="--", label="predicted output")
-    ax[0].set_ylabel(f"output ({unit})")
-    ax[0].legend(loc="upper right", fontsize=8)
-    ax[1].plot(t, y - yhat, lw=0.7, color="C3")
-    ax[1].set_ylabel(f"error ({unit})")
-    ax[1].set_xlabel("time (s)")
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def _figure_models(path, t, y, rows, title, unit):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(9, 4))
-    ax.plot(t, y, lw=1.2, color="k", label="measured (simulated rig)")
-    for r in rows:
-        fit = r.get("fit_percent")
-        label = f"{r['identifier']} {r.get('reading', '')}".strip() + (f": {fit:.1f} %" if fit == fit else "")
-        ax.plot(t, r["_yhat"], lw=0.8, label=label)
-    lo, hi = np.nanmin(y), np.nanmax(y)
-    span = hi - lo
-    ax.set_ylim(lo - 0.6 * span, hi + 0.6 * span)
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel(f"output ({unit})")
-    ax.legend(fontsize=7, loc="upper right")
-    ax.set_title(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def _figures(result: ScenarioResult, out: Path) -> list[tuple[str, str]]:
-    """Draw the PNG figures; returns ``[(file name, caption)]``."""
-    from ..plots import plot_recording
-
-    figs = []
-    rec, unit = result.recording, result.spec["data"]["output_unit"]
-    plot_recording(rec, out / "recording.png", title=f"{result.spec['scenario']['name']}: simulated run")
-    figs.append(("recording.png", "The simulated run: position and reference, valve command, chamber pressures."))
-    t = rec.time_s
-    n_est = result.n_estimation
+def write_predictions(result: ScenarioResult, path) -> list[str]:
+    """``predictions.csv``: time, the identifiers' y and u, and one column per scored row with its
+    model output (``IDENTIFIER | READING``; empty where the row is not scored).  Returns the column names."""
+    n = len(result.y)
+    cols = {"time_s": result.recording.time_s, "y": result.y, "u": result.u}
     for r in result.rows:
-        if r.get("kind") == "rls" and "_yhat" in r:
-            name = f"rls-{_slug(r['identifier'])}-h{r['horizon']}.png"
-            _figure_prediction(out / name, t, result.y, r["_yhat"],
-                               f"{r['identifier']}, {r['horizon']}-step prediction: actual, predicted, error", unit)
-            figs.append((name, f"On-line actual output, {r['identifier']} at {r['horizon']}-step prediction, "
-                               "and the error versus time (the paper's figures 5-9)."))
-    pub_z = [r for r in result.rows if r.get("kind") == "published_z" and "_yhat" in r]
-    if pub_z:
-        _figure_models(out / "published-z.png", t, result.y, pub_z,
-                       "Published discrete models (eqs. 9-11), one-step prediction on our data", unit)
-        figs.append(("published-z.png", "The paper's published models predicting our simulated data one step ahead."))
-    val_rows = [r for r in result.rows if "_yhat" in r and r.get("kind") not in ("rls", "published_z")
-                and len(r["_yhat"]) == len(t) - n_est]
-    blackbox = [r for r in val_rows if r["kind"] != "published_s"]
-    if blackbox:
-        _figure_models(out / "validation.png", t[n_est:], result.y[n_est:], blackbox,
-                       "Validation half: measured and simulated model outputs", unit)
-        figs.append(("validation.png", "Validation data and the simulated output of each identified model."))
-    pub_s = [r for r in val_rows if r["kind"] == "published_s"]
-    if pub_s:
-        _figure_models(out / "published-s.png", t[n_est:], result.y[n_est:], pub_s,
-                       "Published continuous model (eq. 4) under each time-unit reading", unit)
-        figs.append(("published-s.png", "Equation 4 simulated on the validation half under each time-unit reading "
-                                        "(axes clipped around the measured output)."))
-    for v in result.variants:
-        name = f"variant-{_slug(v['name'])}.png"
-        plot_recording(v["recording"], out / name, title=f"variant: {v['name']}")
-        figs.append((name, f"Variant '{v['name']}': {v['description']}"))
-    return figs
+        yhat = r.get("_yhat")
+        if yhat is None:
+            continue
+        full = np.full(n, np.nan)
+        full[n - len(yhat):] = yhat
+        cols[f"{r['identifier']} | {r.get('reading', '')}"] = full
+    names = list(cols)
+    data = np.column_stack([np.asarray(cols[c], float) for c in names])
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(names)
+        for row in data:
+            writer.writerow(["" if not np.isfinite(v) else repr(float(v)) for v in row])
+    return names
 
 
 def _render_md(blocks) -> str:
@@ -138,8 +72,9 @@ def _render_md(blocks) -> str:
             out.append("\n".join(f"* {item}" for item in payload))
         elif kind == "table":
             header, rows = payload
-            out.append("| " + " | ".join(header) + " |\n|" + "---|" * len(header) + "\n"
-                       + "\n".join("| " + " | ".join(str(c) for c in row) + " |" for row in rows))
+            cell = lambda c: str(c).replace("|", "\\|")  # noqa: E731 - a pipe would split the cell
+            out.append("| " + " | ".join(map(cell, header)) + " |\n|" + "---|" * len(header) + "\n"
+                       + "\n".join("| " + " | ".join(map(cell, row)) + " |" for row in rows))
         elif kind == "fig":
             name, caption = payload
             out.append(f"![{caption}]({name})\n\n*{caption}*")
@@ -177,53 +112,90 @@ def _render_html(blocks, title: str, out: Path) -> str:
             f"<style>{style}</style></head><body>\n" + "\n".join(body) + "\n</body></html>\n")
 
 
-def write_report(result: ScenarioResult, out_dir, scenario_path: str = "SCENARIO.toml") -> dict:
-    """Write everything into ``out_dir`` (created); returns the metrics dict written as metrics.json."""
+def _variants_blocks(result: ScenarioResult) -> list:
+    """The main run and each variant: where the piston went (and, open loop, its velocity gain)."""
+    if not result.variants:
+        return []
+    main = result.timings_s["main_run_end_stops"]
+    runs = [("main run", result.spec["experiment"]["loop"], main)] + [(v["name"], v["summary"]["loop"], v["summary"])
+                                                                    for v in result.variants]
+    body = [[name, loop, f"{s['position_min_m'] * 1e3:.1f}", f"{s['position_max_m'] * 1e3:.1f}",
+             f"{s['stroke_m'] * 1e3:g}", f"{100 * s['fraction_at_end_stop']:.1f}",
+             "never" if s["first_end_stop_s"] is None else f"{s['first_end_stop_s']:g}"] for name, loop, s in runs]
+    blocks = [("h", (2, "Variants: where the piston goes")),
+              ("p", "Each variant is the main experiment with some keys changed, simulated on the same rig. "
+                    "'At an end stop' counts the samples within 1 mm of either end of the stroke.")]
+    blocks.append(("table", (["run", "loop", "position min (mm)", "position max (mm)", "stroke (mm)",
+                              "time at an end stop (%)", "first end-stop contact (s)"], body)))
+    items = [f"{v['name']}: {v['description']}" for v in result.variants]
+    for v in result.variants:
+        g = v["summary"].get("valve_velocity_gain")
+        if g:
+            items.append(f"{v['name']}: piston velocity = {1e3 * g['gain_m_per_s_per_V']:.3g} mm/s per V of valve "
+                         f"command from the null (least squares over {g['n']} samples away from the end stops, "
+                         f"R^2 = {g['r2']:.2f}): the rig integrates its valve command.")
+    blocks.append(("ul", items))
+    return blocks
+
+
+def write_report(result: ScenarioResult, out_dir, scenario_path: str = "SCENARIO.toml", overrides=()) -> dict:
+    """Write everything into ``out_dir`` (created); returns the metrics dict written as metrics.json.
+
+    ``overrides`` are the ``--set KEY=VALUE`` items the run was made with (shown in the report).
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     spec = result.spec
-    files = {"recording": "recording.csv"}
+    files = {"recording": "recording.csv", "predictions": "predictions.csv"}
     write_recording(result.recording, out / "recording.csv")
+    write_predictions(result, out / "predictions.csv")
     for v in result.variants:
-        name = f"variant-{_slug(v['name'])}.csv"
+        name = f"variant-{slug(v['name'])}.csv"
         write_recording(v["recording"], out / name)
         files[f"variant:{v['name']}"] = name
-    figs = _figures(result, out)
+    figs = make_figures(result, out)
     files["figures"] = [f for f, _ in figs]
     metrics = metrics_dict(result, files)
+    metrics["overrides"] = list(overrides)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=1, allow_nan=False), encoding="utf-8")
-    sc, exp = spec["scenario"], spec["experiment"]
+    sc, exp, data = spec["scenario"], spec["experiment"], spec["data"]
     title = sc["title"] or sc["name"]
     blocks = [("h", (1, title))]
     if sc["description"].strip():
         blocks.append(("p", " ".join(sc["description"].split())))
+    if overrides:
+        blocks.append(("p", "Run with changed keys: " + ", ".join(overrides) + " (numbers below are for this run)."))
     if sc["notes"]:
         blocks += [("h", (2, "Readings and choices")), ("ul", list(sc["notes"]))]
     rec = result.recording
+    unit = unit_label(data["output_unit"])
+    u_text = ("the valve command in V" if data["input"] == "valve_cmd_V"
+              else f"the scenario signal ({exp['signal'].get('unit', 'native')})")
+    y_text = {"sensor_V": "the position sensor's voltage"}.get(data["output_unit"], f"the position in {unit}")
     blocks += [("h", (2, "Setup")), ("ul", [
-        f"Rig: {result.rig_name}; overrides: {spec['rig']['overrides'] or 'none'}; effects: "
+        f"Rig: {result.rig_name}; parameter overrides: {spec['rig']['overrides'] or 'none'}; effects: "
         f"{', '.join(spec['rig']['effects']) or 'none'}.",
         f"Experiment: {exp['loop']} loop, {exp['signal']['kind']} signal, {rec.n_samples} samples at "
         f"{rec.sample_time_s * 1e3:g} ms ({rec.n_samples * rec.sample_time_s:g} s), seed {exp['seed']}, "
         f"sensor noise x{exp['noise_scale']}.",
-        f"Identification data: y = position in {spec['data']['output_unit']} minus {spec['data']['output_offset']}, "
-        f"u = {spec['data']['input']} minus {spec['data']['input_offset']}; estimation on the first "
-        f"{result.n_estimation} samples, validation on the remaining {rec.n_samples - result.n_estimation}.",
+        f"Identification data: y = {y_text}" + (f" minus {data['output_offset']:g} {unit}" if data["output_offset"]
+                                                 else "")
+        + f"; u = {u_text}" + (f" minus {data['input_offset']:g}" if data["input_offset"] else "")
+        + f". Estimation on the first {result.n_estimation} samples, validation on the remaining "
+          f"{rec.n_samples - result.n_estimation}.",
         f"Run time: simulation {result.timings_s['simulation_s']:.1f} s, total {result.timings_s['total_s']:.1f} s.",
     ])]
     blocks += layout_blocks(result)
-    blocks += [("h", (2, "All rows")), ("table", rows_table(result.rows, spec["metrics"]["report"]))]
-    if result.variants:
-        blocks.append(("h", (2, "Variants")))
-        blocks.append(("table", (["variant", "loop", "position min (mm)", "position max (mm)",
-                                  "time at an end stop (%)", "first end-stop contact (s)"],
-                                 [[v["name"], v["summary"]["loop"], f"{v['summary']['position_min_m'] * 1e3:.1f}",
-                                   f"{v['summary']['position_max_m'] * 1e3:.1f}",
-                                   f"{100 * v['summary']['fraction_at_end_stop']:.1f}",
-                                   v["summary"]["first_end_stop_s"]] for v in result.variants])))
+    blocks += [("h", (2, "All rows")),
+               ("p", "Every identifier and reading with the metrics listed in the scenario; metrics.json holds "
+                     "all of them (fit %, mse = square error, rmse, min/max/std of actual, predicted and error), "
+                     "predictions.csv each model's output beside y and u."),
+               ("table", rows_table(result.rows, spec["metrics"]["report"]))]
+    blocks += _variants_blocks(result)
     blocks.append(("h", (2, "Figures")))
     blocks += [("fig", f) for f in figs]
-    blocks += [("h", (2, "Reproduce")), ("code", f"pneusim run {scenario_path} --out {out_dir}")]
+    sets = "".join(f" --set {shlex.quote(o)}" for o in overrides)
+    blocks += [("h", (2, "Reproduce")), ("code", f"pneusim run {scenario_path}{sets} --out {out_dir}")]
     (out / "report.md").write_text(_render_md(blocks), encoding="utf-8")
     (out / "report.html").write_text(_render_html(blocks, title, out), encoding="utf-8")
     return metrics

@@ -17,6 +17,7 @@ from ..model import parse_effect_text
 from ..rig import load_rig
 from ..simulate import simulate
 from . import identify as idf
+from .analysis import excitation_freqs_Hz, free_run, theta_to_z, valve_velocity_gain, z_properties
 from .online import make_rls, simulate_online
 from .signals import build_experiment, input_signal, output_signal, sensor_gain
 
@@ -54,6 +55,8 @@ class ScenarioResult:
     variants: list = field(default_factory=list)
     timings_s: dict = field(default_factory=dict)
     rig_name: str = ""
+    rig: object = None
+    output_per_m: float = 1.0
 
 
 def end_stop_summary(position_m: np.ndarray, stroke_m: float, sample_time_s: float, margin_m: float = 1e-3) -> dict:
@@ -122,19 +125,24 @@ def run_scenario(spec: dict, progress: bool = False, variants: bool = True) -> S
             for h in ident["horizons"]:
                 yhat = preds[(ident["name"], h)]
                 th = thetas[ident["name"]][-1]
+                num_z, den_z = theta_to_z(th, ident["order"])
                 new.append({"identifier": ident["name"], "kind": kind, "reading": f"online, {h}-step prediction",
                             "horizon": h, "order": ident["order"], "forgetting": ident["forgetting"],
                             "engine": online[ident["name"]].engine,
                             "status": "ok", **idf.error_stats(y, yhat), "_yhat": yhat,
-                            "theta_final": [float(v) for v in th]})
+                            "theta_final": [float(v) for v in th], **z_properties(num_z, den_z)})
+                if h == 1:
+                    free = free_run(num_z, den_z, y, u)
+                    new[-1].update(free_run_fit_percent=idf.fit_percent(y, free), _free=free)
         elif kind == "published_z":
             new = idf.score_published_z(ident, y, u)
         elif kind == "published_s":
-            new = idf.score_published_s(ident, val, ts, record_s=n * ts)
+            new = idf.score_published_s(ident, val, ts, record_s=n * ts,
+                                        band_Hz=excitation_freqs_Hz(exp_spec["signal"], n * ts),
+                                        output_per_m=scale)
         elif kind == "physical_fit":
-            t_split = n_est * ts
-            new = idf.run_physical_fit(ident, rec.slice(None, t_split - ts / 2), rec.slice(t_split - ts / 2, None),
-                                       rig, effects, lambda p: output_signal(p, rig, data), val[0])
+            new = idf.run_physical_fit(ident, rec, n_est, rig, effects, lambda p: output_signal(p, rig, data),
+                                       val[0])
         else:
             new = idf.run_blackbox(ident, est, val, ts)
         dt = time.perf_counter() - t1
@@ -142,7 +150,8 @@ def run_scenario(spec: dict, progress: bool = False, variants: bool = True) -> S
             r["wall_time_s"] = dt + (timings["simulation_s"] if kind == "rls" else 0.0)
             r.setdefault("scored_on", "whole online run" if kind in ("rls", "published_z") else "validation half")
         rows.extend(new)
-    result = ScenarioResult(spec, rows, rec, y, u, n_est, thetas=thetas, rig_name=rig.name)
+    result = ScenarioResult(spec, rows, rec, y, u, n_est, thetas=thetas, rig_name=rig.name, rig=rig,
+                            output_per_m=scale)
     if variants:
         for var in spec.get("variants", []):
             t1 = time.perf_counter()
@@ -151,8 +160,13 @@ def run_scenario(spec: dict, progress: bool = False, variants: bool = True) -> S
             vexperiment, _ = build_experiment(rig, vexp)
             vsim = simulate(rig, vexperiment, effects, seed=int(vexp["seed"]), noise_scale=float(vexp["noise_scale"]),
                             progress=progress)
-            summary = end_stop_summary(vsim.recording.position_m, rig.stroke_m, vexperiment.sample_time_s)
+            vrec = vsim.recording
+            summary = end_stop_summary(vrec.position_m, rig.stroke_m, vexperiment.sample_time_s)
             summary.update(loop=vexp["loop"], wall_time_s=time.perf_counter() - t1)
+            if vexp["loop"] == "open":
+                summary["valve_velocity_gain"] = valve_velocity_gain(
+                    vrec.position_m, vrec.valve_cmd_V, vexperiment.sample_time_s, rig.params["valve_null_V"],
+                    rig.stroke_m)
             result.variants.append({"name": var["name"], "description": var.get("description", ""),
                                     "recording": vsim.recording, "summary": summary})
     result.timings_s = {**timings, "total_s": time.perf_counter() - started}

@@ -3,9 +3,10 @@
 The schema is documented in ``scenarios/README.md``.  A scenario is kept as a
 plain nested ``dict`` (so that a sweep can vary any key by its dotted path, e.g.
 ``rig.overrides.supply_Pa``) after :func:`validate_scenario` has checked every
-key, type and allowed value.  Every mistake raises
-:class:`~pneusim.errors.InputFileError` naming the file, the key and what was
-expected.
+key, type and allowed value, and the parts that need the rig: the rig name, its
+parameter overrides, the effects, the number of samples and the signal's unit.
+Every mistake raises :class:`~pneusim.errors.InputFileError` naming the file,
+the key and what was expected.
 """
 
 from __future__ import annotations
@@ -15,11 +16,11 @@ import copy
 from pathlib import Path
 from typing import Any
 
-from ..errors import InputFileError
+from ..errors import InputFileError, PneusimError
 from ..tomlfile import read_toml
 
 __all__ = ["load_scenario", "validate_scenario", "set_dotted", "get_dotted", "SIGNAL_KINDS",
-           "IDENTIFIER_KINDS", "OUTPUT_UNITS", "INPUTS", "LAYOUTS"]
+           "IDENTIFIER_KINDS", "OUTPUT_UNITS", "INPUTS", "LAYOUTS", "MIN_SAMPLES"]
 
 SIGNAL_KINDS = ("multisine", "pulses", "steps", "doublets")
 IDENTIFIER_KINDS = ("rls", "arx", "armax", "ss", "tf", "published_z", "published_s", "physical_fit")
@@ -27,6 +28,9 @@ OUTPUT_UNITS = ("m", "cm", "mm", "sensor_V")
 INPUTS = ("valve_cmd_V", "signal")
 LAYOUTS = ("generic", "paper1-table1", "paper2-table1")
 TIME_UNITS = ("s", "ms", "sample")
+METRIC_NAMES = ("fit_percent", "mse", "rmse", "error_std", "wall_time_s")
+#: fewest samples an experiment may have
+MIN_SAMPLES = 50
 
 _NUM = (int, float)
 #: allowed keys per table: name -> (types, required, default)
@@ -43,14 +47,22 @@ _TABLES: dict[str, dict[str, tuple]] = {
              "estimation_fraction": (_NUM, False, 0.5)},
     "metrics": {"report": (list, False, ["fit_percent", "mse"])},
 }
+_CONTROLLER_KEYS = {"kind": str, "kp_V_per_m": _NUM, "u0_V": _NUM, "u_min_V": _NUM, "u_max_V": _NUM}
 _SIGNAL_KEYS = {"kind": str, "unit": str, "offset": _NUM, "components": list, "base": _NUM, "amplitude": list,
                 "width_s": list, "rest_s": list, "sign": str, "low": _NUM, "high": _NUM, "hold_s": list,
                 "half_s": list, "seed": int, "note": str}
+_SIGNAL_COMMON = ("kind", "unit", "offset", "seed", "note")
+_SIGNAL_KIND_KEYS = {"multisine": ("components",), "pulses": ("base", "amplitude", "width_s", "rest_s", "sign"),
+                     "steps": ("low", "high", "hold_s"), "doublets": ("amplitude", "half_s", "rest_s")}
 _IDENT_KEYS = {"name": str, "kind": str, "orders": list, "order": int, "forgetting": _NUM,
                "initial_covariance": _NUM, "horizons": list, "nx": int, "np": int, "nz": int,
-               "iodelay_s": _NUM, "num": list, "den": list, "delay_samples": int, "input_delay_samples": int,
-               "time_units": list, "delay": _NUM, "published": dict, "input_offsets": list, "engine": str, "note": str, "enabled": bool}
-METRIC_NAMES = ("fit_percent", "mse", "rmse", "error_std", "wall_time_s")
+               "iodelay_s": _NUM, "num": list, "den": list, "time_units": list, "delay": _NUM, "published": dict,
+               "input_offsets": list, "engine": str, "note": str, "enabled": bool}
+_IDENT_COMMON = ("name", "kind", "published", "enabled", "note")
+_IDENT_KIND_KEYS = {"rls": ("order", "forgetting", "initial_covariance", "horizons", "engine"),
+                    "arx": ("orders",), "armax": ("orders",), "ss": ("nx",), "tf": ("np", "nz", "iodelay_s"),
+                    "published_z": ("num", "den", "input_offsets"),
+                    "published_s": ("num", "den", "delay", "time_units"), "physical_fit": ()}
 
 
 def load_scenario(path: str | Path) -> dict:
@@ -71,9 +83,8 @@ def _fail(where, key, message):
 
 
 def _check_type(where, key, value, types):
-    if isinstance(value, bool) and types is not bool and bool not in (types if isinstance(types, tuple) else (types,)):
-        _fail(where, key, f"expected {_type_name(types)}, got {value!r}")
-    if not isinstance(value, types):
+    allowed = types if isinstance(types, tuple) else (types,)
+    if (isinstance(value, bool) and bool not in allowed) or not isinstance(value, allowed):
         _fail(where, key, f"expected {_type_name(types)}, got {value!r}")
 
 
@@ -83,6 +94,19 @@ def _type_name(types) -> str:
     if types == _NUM:
         return "a number"
     return names.get(types, str(types))
+
+
+def _numbers(where, key, value, n=None, what="numbers"):
+    """``value`` must be a list of numbers (of length ``n`` if given)."""
+    ok = isinstance(value, list) and all(isinstance(x, _NUM) and not isinstance(x, bool) for x in value)
+    if not ok or (n is not None and len(value) != n) or not value:
+        size = f"{n} " if n is not None else ""
+        _fail(where, key, f"expected a non-empty list of {size}{what}, got {value!r}")
+
+
+def _check_keys(where, prefix, given, allowed, context=""):
+    for key in sorted(set(given) - set(allowed)):
+        _fail(where, f"{prefix}.{key}", f"unknown key{context}; expected one of {', '.join(allowed)}")
 
 
 def validate_scenario(data: dict, where: str = "scenario") -> dict:
@@ -95,8 +119,7 @@ def validate_scenario(data: dict, where: str = "scenario") -> dict:
         given = data.setdefault(table, {})
         if not isinstance(given, dict):
             _fail(where, table, "expected a table")
-        for key in sorted(set(given) - set(keys)):
-            _fail(where, f"{table}.{key}", f"unknown key; expected one of {', '.join(keys)}")
+        _check_keys(where, table, given, keys)
         for key, (types, required, default) in keys.items():
             if key not in given:
                 if required:
@@ -104,8 +127,9 @@ def validate_scenario(data: dict, where: str = "scenario") -> dict:
                 given[key] = copy.deepcopy(default)
             elif given[key] is not None:
                 _check_type(where, f"{table}.{key}", given[key], types)
+    for i, note in enumerate(data["scenario"]["notes"]):
+        _check_type(where, f"scenario.notes[{i}]", note, str)
     _check_choice(where, "scenario.layout", data["scenario"]["layout"], LAYOUTS)
-    _check_choice(where, "experiment.loop", data["experiment"]["loop"], ("open", "closed"))
     _check_choice(where, "data.output_unit", data["data"]["output_unit"], OUTPUT_UNITS)
     _check_choice(where, "data.input", data["data"]["input"], INPUTS)
     for key, value in data["rig"]["overrides"].items():
@@ -113,15 +137,7 @@ def validate_scenario(data: dict, where: str = "scenario") -> dict:
     for i, eff in enumerate(data["rig"]["effects"]):
         _check_type(where, f"rig.effects[{i}]", eff, str)
     exp = data["experiment"]
-    if not exp["duration_s"] > 0:
-        _fail(where, "experiment.duration_s", f"expected a positive duration in s, got {exp['duration_s']!r}")
-    if exp["sample_time_s"] is not None and not exp["sample_time_s"] > 0:
-        _fail(where, "experiment.sample_time_s", f"expected a positive sample time in s, got {exp['sample_time_s']!r}")
-    if exp["noise_scale"] < 0:
-        _fail(where, "experiment.noise_scale", f"expected a number >= 0, got {exp['noise_scale']!r}")
-    if exp["loop"] == "closed" and not exp["controller"].get("kp_V_per_m", 0) > 0 and exp["controller"]:
-        _fail(where, "experiment.controller.kp_V_per_m", "expected a positive gain in V/m")
-    _validate_signal(where, exp["signal"])
+    _validate_experiment(where, exp, "experiment")
     frac = data["data"]["estimation_fraction"]
     if not 0.0 < frac < 1.0:
         _fail(where, "data.estimation_fraction", f"expected a number in (0, 1), got {frac!r}")
@@ -137,17 +153,26 @@ def validate_scenario(data: dict, where: str = "scenario") -> dict:
             _fail(where, f"identifiers[{i}].name", f"duplicate identifier name {ident['name']!r}")
         names.add(ident["name"])
     variants = data.setdefault("variants", [])
+    if not isinstance(variants, list):
+        _fail(where, "variants", "expected [[variants]] tables")
+    merged_exps = []
     for i, var in enumerate(variants):
         if not isinstance(var, dict) or not isinstance(var.get("name"), str):
             _fail(where, f"variants[{i}].name", "expected a table with a string 'name'")
-        for key in sorted(set(var) - {"name", "description", "experiment"}):
-            _fail(where, f"variants[{i}].{key}", "unknown key; expected name, description, experiment")
+        _check_keys(where, f"variants[{i}]", var, ("name", "description", "experiment"))
+        vexp = var.get("experiment", {})
+        if not isinstance(vexp, dict):
+            _fail(where, f"variants[{i}].experiment", "expected a table of [experiment] keys")
+        prefix = f"variants[{i}].experiment"
+        _check_keys(where, prefix, vexp, _TABLES["experiment"])
+        for key, value in vexp.items():
+            if value is not None:
+                _check_type(where, f"{prefix}.{key}", value, _TABLES["experiment"][key][0])
         merged = copy.deepcopy(exp)
-        merged.update(var.get("experiment", {}))
-        if merged["loop"] not in ("open", "closed"):
-            _fail(where, f"variants[{i}].experiment.loop", "expected 'open' or 'closed'")
-        if "signal" in var.get("experiment", {}):
-            _validate_signal(where, merged["signal"], f"variants[{i}].experiment.signal")
+        merged.update(copy.deepcopy(vexp))
+        _validate_experiment(where, merged, prefix)
+        merged_exps.append((prefix, merged))
+    _validate_with_rig(where, data, merged_exps)
     return data
 
 
@@ -156,32 +181,59 @@ def _check_choice(where, key, value, choices):
         _fail(where, key, f"expected one of {', '.join(map(str, choices))}, got {value!r}")
 
 
+def _validate_experiment(where, exp, prefix):
+    """The [experiment] table (or a variant's merged copy): values, controller and signal."""
+    _check_choice(where, f"{prefix}.loop", exp["loop"], ("open", "closed"))
+    if not exp["duration_s"] > 0:
+        _fail(where, f"{prefix}.duration_s", f"expected a positive duration in s, got {exp['duration_s']!r}")
+    if exp.get("sample_time_s") is not None and not exp["sample_time_s"] > 0:
+        _fail(where, f"{prefix}.sample_time_s", f"expected a positive sample time in s, got {exp['sample_time_s']!r}")
+    for key in ("noise_scale", "warmup_s", "seed"):
+        if exp.get(key) is not None and exp[key] < 0:
+            _fail(where, f"{prefix}.{key}", f"expected a number >= 0, got {exp[key]!r}")
+    ctrl = exp.get("controller") or {}
+    _check_keys(where, f"{prefix}.controller", ctrl, _CONTROLLER_KEYS)
+    for key, value in ctrl.items():
+        _check_type(where, f"{prefix}.controller.{key}", value, _CONTROLLER_KEYS[key])
+    if "kind" in ctrl:
+        _check_choice(where, f"{prefix}.controller.kind", ctrl["kind"], ("proportional",))
+    if "kp_V_per_m" in ctrl and not ctrl["kp_V_per_m"] > 0:
+        _fail(where, f"{prefix}.controller.kp_V_per_m", f"expected a positive gain in V/m, got {ctrl['kp_V_per_m']!r}")
+    _validate_signal(where, exp["signal"], f"{prefix}.signal")
+
+
 def _validate_signal(where, sig, prefix="experiment.signal"):
-    for key in sorted(set(sig) - set(_SIGNAL_KEYS)):
-        _fail(where, f"{prefix}.{key}", f"unknown key; expected one of {', '.join(_SIGNAL_KEYS)}")
+    _check_keys(where, prefix, sig, _SIGNAL_KEYS)
     for key, value in sig.items():
         _check_type(where, f"{prefix}.{key}", value, _SIGNAL_KEYS[key])
     if "kind" not in sig:
         _fail(where, f"{prefix}.kind", "required key missing")
     _check_choice(where, f"{prefix}.kind", sig["kind"], SIGNAL_KINDS)
+    _check_keys(where, prefix, sig, _SIGNAL_COMMON + _SIGNAL_KIND_KEYS[sig["kind"]],
+                context=f" for kind = {sig['kind']!r}")
     _check_choice(where, f"{prefix}.unit", sig.setdefault("unit", "native"), ("native", "m", "sensor_V"))
     if sig["kind"] == "multisine":
         comps = sig.get("components")
         if not comps or not all(isinstance(c, list) and len(c) in (2, 3) and all(isinstance(x, _NUM) for x in c)
-                                for c in comps):
-            _fail(where, f"{prefix}.components", "expected a list of [amplitude, frequency_Hz(, phase_rad)]")
+                                and c[1] >= 0 for c in comps):
+            _fail(where, f"{prefix}.components", "expected a list of [amplitude, frequency_Hz >= 0(, phase_rad)]")
     for key in ("amplitude", "width_s", "rest_s", "hold_s", "half_s"):
-        if key in sig and (len(sig[key]) != 2 or not all(isinstance(x, _NUM) for x in sig[key])):
-            _fail(where, f"{prefix}.{key}", "expected [low, high]")
+        if key in sig:
+            _numbers(where, f"{prefix}.{key}", sig[key], 2, "numbers [low, high]")
+            if sig[key][0] > sig[key][1]:
+                _fail(where, f"{prefix}.{key}", f"expected [low, high] with low <= high, got {sig[key]!r}")
+            if key.endswith("_s") and not sig[key][0] > 0:
+                _fail(where, f"{prefix}.{key}", f"expected positive durations in s, got {sig[key]!r}")
     if "sign" in sig:
         _check_choice(where, f"{prefix}.sign", sig["sign"], ("both", "positive", "negative"))
+    if sig.get("seed", 0) < 0:
+        _fail(where, f"{prefix}.seed", f"expected an integer >= 0, got {sig['seed']!r}")
 
 
 def _validate_identifier(where, prefix, ident):
     if not isinstance(ident, dict):
         _fail(where, prefix, "expected a table")
-    for key in sorted(set(ident) - set(_IDENT_KEYS)):
-        _fail(where, f"{prefix}.{key}", f"unknown key; expected one of {', '.join(_IDENT_KEYS)}")
+    _check_keys(where, prefix, ident, _IDENT_KEYS)
     for key, value in ident.items():
         _check_type(where, f"{prefix}.{key}", value, _IDENT_KEYS[key])
     for key in ("name", "kind"):
@@ -189,17 +241,21 @@ def _validate_identifier(where, prefix, ident):
             _fail(where, f"{prefix}.{key}", "required key missing")
     kind = ident["kind"]
     _check_choice(where, f"{prefix}.kind", kind, IDENTIFIER_KINDS)
+    _check_keys(where, prefix, ident, _IDENT_COMMON + _IDENT_KIND_KEYS[kind], context=f" for kind = {kind!r}")
     need = {"rls": ("order",), "arx": ("orders",), "armax": ("orders",), "ss": ("nx",), "tf": ("np", "nz"),
             "published_z": ("num", "den"), "published_s": ("num", "den")}.get(kind, ())
     for key in need:
         if key not in ident:
             _fail(where, f"{prefix}.{key}", f"required for kind = {kind!r}")
+    for key, value in ident.get("published", {}).items():
+        _check_type(where, f"{prefix}.published.{key}", value, _NUM)
     n_orders = {"arx": 3, "armax": 4}.get(kind)
-    if n_orders and (len(ident["orders"]) != n_orders or not all(isinstance(o, int) and o >= 0 for o in ident["orders"])):
-        _fail(where, f"{prefix}.orders", f"expected {n_orders} non-negative integers for {kind}")
+    if n_orders and (len(ident["orders"]) != n_orders
+                     or not all(isinstance(o, int) and not isinstance(o, bool) and o >= 0 for o in ident["orders"])):
+        _fail(where, f"{prefix}.orders", f"expected {n_orders} non-negative integers for {kind}, got {ident['orders']!r}")
     if kind == "rls":
         if ident["order"] < 1:
-            _fail(where, f"{prefix}.order", "expected a positive integer")
+            _fail(where, f"{prefix}.order", f"expected a positive integer, got {ident['order']!r}")
         lam = ident.setdefault("forgetting", 0.99)
         if not 0.0 < lam <= 1.0:
             _fail(where, f"{prefix}.forgetting", f"expected a number in (0, 1], got {lam!r}")
@@ -207,13 +263,76 @@ def _validate_identifier(where, prefix, ident):
             _fail(where, f"{prefix}.initial_covariance", "expected a positive number")
         _check_choice(where, f"{prefix}.engine", ident.setdefault("engine", "auto"), ("auto", "sysid", "pneusim"))
         hs = ident.setdefault("horizons", [1])
-        if not hs or not all(isinstance(h, int) and h >= 1 for h in hs):
-            _fail(where, f"{prefix}.horizons", "expected a list of positive integers (prediction steps)")
+        if not hs or not all(isinstance(h, int) and not isinstance(h, bool) and h >= 1 for h in hs):
+            _fail(where, f"{prefix}.horizons", f"expected a list of positive integers (prediction steps), got {hs!r}")
+    if kind == "ss" and ident["nx"] < 1:
+        _fail(where, f"{prefix}.nx", f"expected a positive integer, got {ident['nx']!r}")
+    if kind == "tf":
+        if ident["np"] < 1:
+            _fail(where, f"{prefix}.np", f"expected a positive integer, got {ident['np']!r}")
+        if not 0 <= ident["nz"] <= ident["np"]:
+            _fail(where, f"{prefix}.nz", f"expected an integer in [0, np = {ident['np']}], got {ident['nz']!r}")
+        if ident.get("iodelay_s", 0.0) < 0:
+            _fail(where, f"{prefix}.iodelay_s", f"expected a delay >= 0 in s, got {ident['iodelay_s']!r}")
+    if kind in ("published_z", "published_s"):
+        _numbers(where, f"{prefix}.num", ident["num"])
+        _numbers(where, f"{prefix}.den", ident["den"])
+        if ident["den"][0] == 0:
+            _fail(where, f"{prefix}.den", "expected a non-zero leading coefficient (descending powers)")
+        if len(ident["num"]) > len(ident["den"]):
+            _fail(where, f"{prefix}.num", f"expected at most {len(ident['den'])} coefficients (a proper model, "
+                                          "descending powers, as long as den at most)")
+    if kind == "published_z":
+        _numbers(where, f"{prefix}.input_offsets", ident.setdefault("input_offsets", [0.0]), what="input offsets")
     if kind == "published_s":
         units = ident.setdefault("time_units", ["s"])
+        if not units:
+            _fail(where, f"{prefix}.time_units", f"expected a non-empty list of {', '.join(TIME_UNITS)}")
         for u in units:
             _check_choice(where, f"{prefix}.time_units", u, TIME_UNITS)
+        if ident.setdefault("delay", 0.0) < 0:
+            _fail(where, f"{prefix}.delay", f"expected a delay >= 0, got {ident['delay']!r}")
     ident.setdefault("enabled", True)
+
+
+def _validate_with_rig(where, data, variant_exps):
+    """What needs the rig: its name, the overrides, the effects, the sample count, units and start position."""
+    from ..model import parse_effect_text
+    from ..rig import load_rig
+
+    try:
+        rig = load_rig(data["rig"]["name"])
+    except PneusimError as exc:
+        _fail(where, "rig.name", str(exc))
+    for key, value in data["rig"]["overrides"].items():
+        if key not in rig.params:
+            _fail(where, f"rig.overrides.{key}", f"unknown parameter of rig {rig.name!r}; expected one of "
+                                                 + ", ".join(sorted(rig.params)))
+    try:
+        rig = rig.with_params(data["rig"]["overrides"])
+    except InputFileError as exc:
+        _fail(where, f"rig.overrides.{exc.field}" if exc.field else "rig.overrides", exc.reason)
+    except PneusimError as exc:
+        _fail(where, "rig.overrides", str(exc))
+    for i, text in enumerate(data["rig"]["effects"]):
+        try:
+            parse_effect_text(text)
+        except (PneusimError, TypeError, ValueError) as exc:
+            _fail(where, f"rig.effects[{i}]", f"{exc} (form: 'NAME:PARAM=VALUE,...')")
+    for prefix, exp in [("experiment", data["experiment"])] + list(variant_exps):
+        ts = float(exp.get("sample_time_s") or rig.sample_time_s)
+        n = int(round(exp["duration_s"] / ts))
+        if n < MIN_SAMPLES:
+            _fail(where, f"{prefix}.duration_s", f"expected at least {MIN_SAMPLES} samples: {exp['duration_s']!r} s "
+                                                 f"at {ts:g} s gives {n}")
+        unit = exp["signal"].get("unit", "native")
+        if exp["loop"] == "open" and unit != "native":
+            _fail(where, f"{prefix}.signal.unit", f"expected 'native' (valve command in V) in open loop, got {unit!r} "
+                                                  "(m and sensor_V are units of a closed-loop reference)")
+        x0 = exp.get("initial_position_m")
+        if x0 is not None and not 0.0 <= x0 <= rig.stroke_m:
+            _fail(where, f"{prefix}.initial_position_m", f"expected a position in [0, {rig.stroke_m:g}] m "
+                                                         f"(the stroke of {rig.name}), got {x0!r}")
 
 
 def get_dotted(data: dict, key: str) -> Any:
@@ -234,16 +353,26 @@ def set_dotted(data: dict, key: str, value: Any, where: str = "sweep") -> None:
     if parts[0] not in set(_TABLES) | {"identifiers", "variants"}:
         raise InputFileError(f"cannot vary {key!r}: unknown scenario table {parts[0]!r}", path=where, field=key)
     node = data
-    for part in parts[:-1]:
+    for i, part in enumerate(parts[:-1]):
         if isinstance(node, list):
             try:
                 node = node[int(part)]
             except (ValueError, IndexError):
-                raise InputFileError(f"cannot vary {key!r}: no list item {part!r}", path=where, field=key) from None
-        else:
+                raise InputFileError(f"cannot vary {key!r}: no list item {part!r} (the list has {len(node)})",
+                                     path=where, field=key) from None
+        elif isinstance(node, dict):
             node = node.setdefault(part, {})
+        else:
+            raise InputFileError(f"cannot vary {key!r}: {'.'.join(parts[:i])!r} is not a table",
+                                 path=where, field=key)
     last = parts[-1]
     if isinstance(node, list):
-        node[int(last)] = value
-    else:
+        try:
+            node[int(last)] = value
+        except (ValueError, IndexError):
+            raise InputFileError(f"cannot vary {key!r}: no list item {last!r} (the list has {len(node)})",
+                                 path=where, field=key) from None
+    elif isinstance(node, dict):
         node[last] = value
+    else:
+        raise InputFileError(f"cannot vary {key!r}: {'.'.join(parts[:-1])!r} is not a table", path=where, field=key)

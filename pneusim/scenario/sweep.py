@@ -36,6 +36,7 @@ import time
 import tomllib
 
 import traceback
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -100,13 +101,38 @@ def load_sweep(path) -> dict:
         if not ok or set(dist) - {"low", "high", "log", "integer", "choices"}:
             raise InputFileError("expected { low = , high = [, log = true][, integer = true] } or { choices = [...] }",
                                  path=path, field=f"random.{key}")
+        if "choices" in dist:
+            if not isinstance(dist["choices"], list) or not dist["choices"]:
+                raise InputFileError("expected a non-empty list of choices", path=path, field=f"random.{key}.choices")
+            continue
+        lo, hi = dist["low"], dist["high"]
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (lo, hi)) or lo > hi:
+            raise InputFileError(f"expected numbers low <= high, got low = {lo!r}, high = {hi!r}", path=path,
+                                 field=f"random.{key}")
+        if dist.get("log") and not lo > 0:
+            raise InputFileError(f"log = true needs low > 0, got {lo!r}", path=path, field=f"random.{key}.low")
+    if not isinstance(head.get("variants", False), bool):
+        raise InputFileError("expected true or false", path=path, field="sweep.variants")
+    if not isinstance(head.get("name", ""), str):
+        raise InputFileError("expected a string", path=path, field="sweep.name")
+    base = data.get("base", {})
+    if not isinstance(base, dict) or not isinstance(grid, dict):
+        raise InputFileError("expected a table of \"dotted.key\" = value", path=path,
+                             field="base" if not isinstance(base, dict) else "grid")
     sweep = {"name": head.get("name", path.stem), "scenario": spec, "scenario_path": str(scen_path),
-             "base": data.get("base", {}), "grid": grid, "random": rnd, "n_random": n_rand, "random_seed": rnd_seed,
+             "base": base, "grid": grid, "random": rnd, "n_random": n_rand, "random_seed": rnd_seed,
              "seeds": seeds, "variants": bool(head.get("variants", False)), "path": str(path), "points": points}
-    # validate every varied key once, with its first value, naming the sweep file
-    probe = expand_runs(sweep)[:1]
-    for params, seed in probe:
+    # validate the varied keys with the first run, naming the sweep file; an explicit point with a key the
+    # scenario does not have is refused too, while a bad value only makes its run fail (recorded in the table)
+    runs = expand_runs(sweep)
+    for params, seed in runs[:1]:
         _apply(spec, sweep["base"], params, seed, where=str(path))
+    for point in sweep["points"]:
+        try:
+            _apply(spec, sweep["base"], point, sweep["seeds"][0], where=str(path))
+        except InputFileError as exc:
+            if exc.reason.startswith(("unknown key", "unknown table", "unknown parameter", "cannot vary")):
+                raise
     return sweep
 
 
@@ -152,37 +178,62 @@ def run_one(spec: dict, base: dict, params: dict, seed: int, variants: bool = Fa
     started = time.perf_counter()
     out = {"run_id": run_id(params, seed), "params": params, "seed": seed, "rows": [], "error": None,
            "worker_pid": os.getpid()}
-    try:
-        result = run_scenario(_apply(spec, base, params, seed), variants=variants)
-        out["rows"] = [clean_row(r) for r in result.rows]
-    except Exception as exc:  # noqa: BLE001 - a failed run is a result of the sweep
-        out["error"] = f"{type(exc).__name__}: {exc}"
-        out["traceback"] = traceback.format_exc(limit=5)
+    with warnings.catch_warnings(record=True) as caught:      # kept with the run, not printed by every worker
+        warnings.simplefilter("always")
+        try:
+            result = run_scenario(_apply(spec, base, params, seed), variants=variants)
+            out["rows"] = [clean_row(r) for r in result.rows]
+        except Exception as exc:  # noqa: BLE001 - a failed run is a result of the sweep
+            out["error"] = f"{type(exc).__name__}: {exc}"
+            out["traceback"] = traceback.format_exc(limit=5)
+    out["warnings"] = sorted({f"{w.category.__name__}: {w.message} ({Path(w.filename).name}:{w.lineno})"
+                              for w in caught})
     out["run_time_s"] = time.perf_counter() - started
     return out
 
 
+def _lost_run(task, exc) -> dict:
+    """The result of a run whose worker did not return (it died, or the executor broke)."""
+    _, _, params, seed, _ = task
+    return {"run_id": run_id(params, seed), "params": params, "seed": seed, "rows": [], "worker_pid": None,
+            "error": f"the worker did not return: {type(exc).__name__}: {exc}", "run_time_s": None}
+
+
+def _dask_client(dask: str, workers: int):
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError as exc:
+        raise PneusimError(f"--dask needs the 'distributed' package ({exc})") from None
+    if dask == "local":
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, host="127.0.0.1", processes=True,
+                               dashboard_address=None)
+        return Client(cluster), cluster
+    try:
+        return Client(dask, timeout="15s"), None
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        raise PneusimError(f"--dask {dask}: no Dask scheduler answered there ({type(exc).__name__}: {exc}); "
+                           "expected tcp://HOST:PORT of a running scheduler, or 'local'") from None
+
+
 def _executor_map(tasks, workers: int, dask: str | None, progress: bool):
-    """Yield results of ``run_one(*task)`` as they complete."""
+    """Yield the result of ``run_one(*task)`` for every task, as they complete; a worker that does not
+    return gives a failed result instead of stopping the sweep."""
     bar = None
     if progress:
         from tqdm import tqdm
         bar = tqdm(total=len(tasks), desc="sweep", unit="run", mininterval=0.5)
     try:
         if dask:
-            from distributed import Client, LocalCluster, as_completed
+            from distributed import as_completed
 
-            cluster = None
-            if dask == "local":
-                cluster = LocalCluster(n_workers=workers, threads_per_worker=1, host="127.0.0.1", processes=True,
-                                       dashboard_address=None)
-                client = Client(cluster)
-            else:
-                client = Client(dask)
+            client, cluster = _dask_client(dask, workers)
             try:
-                futures = [client.submit(run_one, *t, pure=False) for t in tasks]
+                futures = {client.submit(run_one, *t, pure=False): t for t in tasks}
                 for fut in as_completed(futures):
-                    yield fut.result()
+                    try:
+                        yield fut.result()
+                    except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker
+                        yield _lost_run(futures[fut], exc)
                     if bar:
                         bar.update()
             finally:
@@ -198,9 +249,12 @@ def _executor_map(tasks, workers: int, dask: str | None, progress: bool):
             from concurrent.futures import ProcessPoolExecutor, as_completed as cf_completed
 
             with ProcessPoolExecutor(max_workers=workers) as pool:
-                futures = [pool.submit(run_one, *t) for t in tasks]
+                futures = {pool.submit(run_one, *t): t for t in tasks}
                 for fut in cf_completed(futures):
-                    yield fut.result()
+                    try:
+                        yield fut.result()
+                    except Exception as exc:  # noqa: BLE001 - e.g. BrokenProcessPool
+                        yield _lost_run(futures[fut], exc)
                     if bar:
                         bar.update()
     finally:

@@ -5,8 +5,6 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-
-
 __all__ = ["summary_plots"]
 
 
@@ -39,6 +37,9 @@ def summary_plots(table: list[dict], varied: list[str], out_dir, metric: str = "
         if metric == "fit_percent":
             lowest = min(m for s in series.values() for _, m in s)
             ax.set_ylim(max(lowest, -100.0) - 5.0, 105.0)     # fits below -100 % are off the chart
+            hidden = sum(m < -105.0 for s in series.values() for _, m in s)
+            if hidden:
+                ax.set_title(f"{hidden} point(s) below -105 % not shown", fontsize=8)
         ax.set_xlabel(key)
         ax.set_ylabel(metric)
         ax.legend(fontsize=6)
