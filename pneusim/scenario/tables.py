@@ -368,11 +368,12 @@ def _physical(rows):
     est = r.get("estimates", {})
     blocks = [("h", (2, "Physical versus black-box")),
               ("p", f"The physical model (valve, chambers, piston with friction, written once in CasADi) with its "
-                    f"seven uncertain parameters fitted to the estimation half (multiple shooting, IPOPT, "
-                    f"{r.get('fit_seconds', 0):.1f} s): fit {fmt(r.get('fit_percent'))} % when it re-runs the "
-                    f"validation half's experiment, {fmt(r.get('fit_percent_recorded_command'))} % when the "
-                    "recorded valve command drives it open loop (the harder test: nothing corrects its drift). "
-                    "Seven physical numbers with units and standard errors, against tens of black-box "
+                    f"{len(est)} uncertain parameters fitted to the estimation half (multiple shooting, IPOPT, "
+                    f"{r.get('fit_seconds', 0):.1f} s): fit {fmt(r.get('fit_percent'))} % on the validation half "
+                    "when it re-runs the experiment from its start (reference through the controller, "
+                    f"no sensor noise), {fmt(r.get('fit_percent_recorded_command'))} % when the recorded valve "
+                    "command drives it from the state the fit estimated at the split (open loop: nothing "
+                    f"corrects its drift). {len(est)} physical numbers with units and standard errors, against tens of black-box "
                     "coefficients without physical meaning."),
               ("table", (["parameter", "rig file", "fitted", "std"],
                          [[k, f"{v['start']:.4g}", f"{v['estimate']:.4g}", f"{v['std']:.2g}"]
