@@ -7,6 +7,11 @@ import csv
 import numpy as np
 
 
+def rows_of(metrics: dict, identifier: str) -> list:
+    """The rows of ``metrics.json`` that belong to one identifier."""
+    return [r for r in metrics["rows"] if r["identifier"] == identifier]
+
+
 def read_predictions(path) -> dict:
     """predictions.csv as {column: float array} (empty cells as NaN), read with the csv module."""
     with open(path, newline="", encoding="utf-8") as fh:

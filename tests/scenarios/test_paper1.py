@@ -10,13 +10,9 @@ from pneusim.recording import read_recording
 from pneusim.scenario.schema import load_scenario
 
 from physical_checks import check_physical_fit_recovers_the_rig
-from independent import h_step, read_predictions, rls_history, stats
+from independent import h_step, read_predictions, rows_of, rls_history, stats
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
-
-
-def _rows(metrics, identifier):
-    return [r for r in metrics["rows"] if r["identifier"] == identifier]
 
 
 @pytest.fixture(scope="module")
@@ -60,14 +56,14 @@ def test_table1_recomputed_from_recording(data, paper1_run):
         n = ident["order"]
         thetas = rls_history(y, u, n, ident["forgetting"], ident["initial_covariance"])
         for h in ident["horizons"]:
-            row = next(r for r in _rows(m, ident["name"]) if r["horizon"] == h)
+            row = next(r for r in rows_of(m, ident["name"]) if r["horizon"] == h)
             ref = stats(y, h_step(y, u, thetas, n, h))
             for key in ("n_scored", "square_error", "error_std", "fit_percent", "actual_min", "actual_max",
                         "actual_std", "predicted_min", "predicted_max", "predicted_std", "error_min", "error_max"):
                 assert row[key] == pytest.approx(ref[key], rel=1e-5, abs=1e-9), (ident["name"], h, key)
-        np.testing.assert_allclose(_rows(m, ident["name"])[0]["theta_final"], thetas[-1], rtol=1e-5, atol=1e-9)
+        np.testing.assert_allclose(rows_of(m, ident["name"])[0]["theta_final"], thetas[-1], rtol=1e-5, atol=1e-9)
     # the 4th-order model is scored at 1, 5 and 10 steps, and gets worse with the horizon
-    h = {r["horizon"]: r["square_error"] for r in _rows(m, "RLS ARMA order 4")}
+    h = {r["horizon"]: r["square_error"] for r in rows_of(m, "RLS ARMA order 4")}
     assert sorted(h) == [1, 5, 10] and h[1] < h[5] < h[10]
 
 
@@ -94,7 +90,7 @@ def test_published_eq10_recomputed(data, paper1_run):
     for offset, reading in ((0.0, "as printed"), (5.0, "as printed, u - 5")):
         # the regression written out: yhat(k) = -a1 y(k-1) - ... - an y(k-n) + b0 u(k) + ... + bn u(k-n)
         e = [y[k] - (-den[1:] @ y[k - n:k][::-1] + num @ (u[k - n:k + 1][::-1] - offset)) for k in range(n, len(y))]
-        row = next(r for r in _rows(m, ident["name"]) if r["reading"] == reading)
+        row = next(r for r in rows_of(m, ident["name"]) if r["reading"] == reading)
         assert row["square_error"] == pytest.approx(np.mean(np.square(e)), rel=1e-6)
         assert row["n_scored"] == len(e)
         # free run: y(0) + G(z) (u - u(0)), by the difference equation

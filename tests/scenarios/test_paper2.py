@@ -8,14 +8,10 @@ from scipy import signal as sps
 from pneusim.recording import read_recording
 
 from physical_checks import check_physical_fit_recovers_the_rig
-from independent import arx_ls, read_predictions, simulate_estimated_x0, stats
+from independent import arx_ls, read_predictions, rows_of, simulate_estimated_x0, stats
 
 GAIN = 32.808          # paper2-enfield position sensor, V/m
 N_EST = 1000           # 20 s at 10 ms, half for estimation
-
-
-def _rows(metrics, identifier):
-    return [r for r in metrics["rows"] if r["identifier"] == identifier]
 
 
 @pytest.fixture(scope="module")
@@ -77,20 +73,20 @@ def test_blackbox_outputs_are_simulations_of_their_models(data, paper2_run):
         written = pred[f"{row['identifier']} | {row['reading']}"][N_EST:]
         np.testing.assert_allclose(written, yhat, rtol=0, atol=1e-6 * np.ptp(y), err_msg=row["identifier"])
         checked += 1
-    arx = _rows(m, "ARX")[0]
+    arx = rows_of(m, "ARX")[0]
     if arx["status"] == "ok":
         A, B = arx_ls(y[:N_EST], u[:N_EST], 3, 3, 1)
         np.testing.assert_allclose(arx["model_den"], A, rtol=1e-6, atol=1e-9)
         np.testing.assert_allclose(arx["model_num"], B, rtol=1e-6, atol=1e-9)
         assert arx["fit_percent"] <= 100.0
-    assert checked >= 1 or all(_rows(m, n)[0]["status"] != "ok" for n in ("ARX", "ARMAX", "State Space"))
+    assert checked >= 1 or all(rows_of(m, n)[0]["status"] != "ok" for n in ("ARX", "ARMAX", "State Space"))
 
 
 def test_eq4_readings_recomputed(data, paper2_run):
     out, m = paper2_run
     y, u, _ = data
     yv, uv = y[N_EST:], u[N_EST:]
-    rows = {r["reading"]: r for r in _rows(m, "published eq. 4")}
+    rows = {r["reading"]: r for r in rows_of(m, "published eq. 4")}
     assert set(rows) == {"time unit = s", "time unit = ms", "time unit = sample"}
     phase = {}
     for reading, T in (("time unit = s", 1.0), ("time unit = ms", 1e-3), ("time unit = sample", 0.01)):
