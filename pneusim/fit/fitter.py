@@ -116,7 +116,8 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
     searched = [name for name in free if name in SEARCHED]
     if searched:
         raise FitError(f"--free {searched[0]}: a transport delay moves the command switch times and has no "
-                       "gradient; fix it with --effect transport_delay:delay_s=VALUE (pneusim diagnose searches it)")
+                       "gradient; fix it with --effect transport_delay:delay_s=VALUE and compare the fits over a "
+                       "few fixed delays")
     if not 0.0 < validation_fraction <= 0.9:
         raise FitError(f"validation_fraction must be in (0, 0.9], got {validation_fraction}")
     p_start = model.param_vector(rig)
