@@ -49,6 +49,12 @@ def main(argv: list[str] | None = None) -> int:
     except PneusimError as exc:
         print(f"pneusim {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:
+        # the file system refused a read or write the checks could not foresee (an output folder that
+        # cannot be created, a full disk): one sentence, as for any other user-side problem
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"pneusim {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

@@ -2,9 +2,38 @@
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 from ..errors import PneusimError
 from ..model import Effect, parse_effect_text
 from ..rig import Rig, load_rig
+
+
+def output_file(path: str, option: str, suffixes: tuple[str, ...]) -> Path:
+    """Check an output file name before any work is done: its suffix, and a folder that exists and
+    can be written (a long fit or simulation should not end in a failed write)."""
+    out = Path(path)
+    if out.suffix.lower() not in suffixes:
+        raise PneusimError(f"{option} {path}: expected a {' or '.join(suffixes)} file name")
+    folder = out.parent
+    if not folder.is_dir():
+        raise PneusimError(f"{option} {path}: the folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise PneusimError(f"{option} {path}: the folder {folder} cannot be written")
+    return out
+
+
+def output_folder(path, option: str) -> Path:
+    """Create an output folder before any work is done, or say in one sentence why it cannot be."""
+    out = Path(path)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise PneusimError(f"{option} {path}: the folder cannot be created ({exc.strerror or exc})") from None
+    if not os.access(out, os.W_OK):
+        raise PneusimError(f"{option} {path}: the folder cannot be written")
+    return out
 
 
 def parse_param_overrides(items: list[str] | None) -> dict[str, float]:

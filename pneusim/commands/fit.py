@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..errors import PneusimError
 from ..recording import read_recording
-from .common import add_rig_arguments, parse_effects, rig_with_overrides
+from .common import add_rig_arguments, output_file, output_folder, parse_effects, rig_with_overrides
 
 
 def register(sub) -> None:
@@ -33,6 +33,10 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..fit import fit_recording
 
+    if args.json:
+        output_file(args.json, "--json", (".json",))
+    if args.report:
+        output_folder(args.report, "--report")
     recording = read_recording(args.recording)
     rig_name = args.rig or recording.rig
     if not rig_name:

@@ -40,7 +40,9 @@ def run(args) -> int:
         for key, value in parse_set_items(args.set).items():
             set_dotted(spec, key, value, where=where)
         spec = validate_scenario(spec, where=where)
-    out = Path(args.out or Path("results") / spec["scenario"]["name"])
+    from .common import output_folder
+
+    out = output_folder(args.out or Path("results") / spec["scenario"]["name"], "--out")
     result = run_scenario(spec, progress=not args.no_progress)
     write_report(result, out, scenario_path=args.scenario, overrides=list(args.set))
     ok = sum(r["status"] == "ok" for r in result.rows)

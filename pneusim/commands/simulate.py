@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from ..errors import PneusimError
 from ..experiment import INPUT_KINDS, standard_experiment
 from ..recording import read_recording, write_recording
 from ..simulate import rerun_recording, simulate
-from .common import add_rig_arguments, parse_effects, rig_with_overrides
+from .common import add_rig_arguments, output_file, parse_effects, rig_with_overrides
 
 
 def register(sub) -> None:
@@ -32,9 +30,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    out = Path(args.out)
-    if out.suffix.lower() not in (".csv", ".mat"):
-        raise PneusimError(f"--out {out}: expected a .csv or .mat file name")
+    out = output_file(args.out, "--out", (".csv", ".mat"))
+    if args.plot:
+        output_file(args.plot, "--plot", (".png", ".svg"))
     effects = parse_effects(args.effect)
     if args.like:
         if args.input:

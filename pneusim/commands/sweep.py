@@ -44,7 +44,9 @@ def run(args) -> int:
     if args.dask == "local" and args.workers == 0:
         raise PneusimError("--dask local needs --workers >= 1 (the number of Dask worker processes)")
     sweep = load_sweep(args.sweep)
-    out = Path(args.out or Path("results") / f"sweep-{sweep['name']}")
+    from .common import output_folder
+
+    out = output_folder(args.out or Path("results") / f"sweep-{sweep['name']}", "--out")
     info = run_sweep(sweep, out, workers=args.workers, dask=args.dask, progress=not args.no_progress,
                      retry_failed=args.retry_failed)
     rate = f"{info['runs_per_s']:.2f} runs/s" if info["runs_per_s"] == info["runs_per_s"] else "nothing to run"

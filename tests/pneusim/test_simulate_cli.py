@@ -1,5 +1,7 @@
 """The command line: simulate, re-run, check, and user mistakes as one-line errors."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -45,6 +47,10 @@ def test_like_reruns_a_recording(tmp_path, shared_dir):
     (["simulate", "--rig", "paper1-mre", "--out", "x.csv"], "give --input"),
     (["simulate", "--rig", "paper1-mre", "--input", "steps", "--duration", "0.01", "--out", "x.csv"], "at least 50"),
     (["check", "missing.csv"], "missing.csv"),
+    (["simulate", "--rig", "paper1-mre", "--input", "steps", "--out", "no/such/folder/x.csv"],
+     "the folder no/such/folder does not exist"),
+    (["simulate", "--rig", "paper1-mre", "--input", "steps", "--out", "x.csv", "--plot", "x.pdf"],
+     "expected a .png or .svg"),
 ])
 def test_user_mistakes_are_one_clear_line(argv, message, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
@@ -52,6 +58,15 @@ def test_user_mistakes_are_one_clear_line(argv, message, capsys, tmp_path, monke
     err = capsys.readouterr().err
     last = err.strip().splitlines()[-1]  # progress bars may precede it
     assert message in last and last.startswith("pneusim ") and "Traceback" not in err
+
+
+def test_an_output_folder_that_cannot_be_created_is_refused_before_any_work(tmp_path, capsys):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    scenario = Path(__file__).resolve().parents[2] / "scenarios" / "paper2-multisine.toml"
+    assert main(["run", str(scenario), "--out", str(blocker / "report"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "the folder cannot be created" in err and "Traceback" not in err and "simulate" not in err
 
 
 def test_every_practice_recording_reruns_from_the_cli(tmp_path, shared_dir):
