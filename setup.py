@@ -1,4 +1,6 @@
-"""Build the one compiled helper: CVODE callbacks that call CasADi-generated C code.
+"""Build the two compiled helpers: CVODE callbacks that call CasADi-generated C code
+(``_cvode_compiled``, the simulator) and a CVODES driver with forward sensitivities
+(``_cvodes_sensitivity``, the fit).
 
 scikits.odes ships its Cython declarations (.pxd) but not the small
 ``sundials_config.pxi`` they include; it is regenerated here from the installed
@@ -37,22 +39,17 @@ def extensions():
 
     # the folder holding the scikits namespace, so that relative cimports resolve
     odes_root = Path(scikits.odes.__file__).resolve().parents[2]
-    ext = Extension(
-        "pneusim.solver._cvode_compiled",
-        ["pneusim/solver/_cvode_compiled.pyx"],
-        include_dirs=[numpy.get_include(), os.environ.get("SUNDIALS_INCLUDEDIR", "/usr/include")],
-        libraries=["sundials_cvode", "sundials_nvecserial"],
-        define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
-    )
-    # CVODES with forward sensitivities for the parameter fit: declares what it uses itself
-    sensitivity = Extension(
-        "pneusim.solver._cvodes_sensitivity",
-        ["pneusim/solver/_cvodes_sensitivity.pyx"],
-        include_dirs=[numpy.get_include(), os.environ.get("SUNDIALS_INCLUDEDIR", "/usr/include")],
-        libraries=["sundials_cvodes", "sundials_nvecserial"],
-        define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
-    )
-    return cythonize([ext, sensitivity], include_path=[str(sundials_config_pxi()), str(odes_root)],
+    def solver_extension(name, cvode_library):
+        return Extension(
+            f"pneusim.solver.{name}", [f"pneusim/solver/{name}.pyx"],
+            include_dirs=[numpy.get_include(), os.environ.get("SUNDIALS_INCLUDEDIR", "/usr/include")],
+            libraries=[cvode_library, "sundials_nvecserial"],
+            define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
+        )
+
+    # the fit's CVODES driver with forward sensitivities declares what it uses itself
+    return cythonize([solver_extension("_cvode_compiled", "sundials_cvode"),
+                      solver_extension("_cvodes_sensitivity", "sundials_cvodes")], include_path=[str(sundials_config_pxi()), str(odes_root)],
                      compiler_directives={"language_level": 3}, quiet=True)
 
 

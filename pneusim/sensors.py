@@ -43,8 +43,12 @@ class Sensors:
         # standard normals drawn in blocks: the same stream as one draw per call, without the
         # per-call cost inside a 1 kHz loop
         if not self._block:
-            self._block = self.rng.standard_normal(4096).tolist()[::-1]
+            self._refill()
         return self._block.pop()
+
+    def _refill(self) -> None:
+        # stored reversed, so that pop() hands the draws out in the generator's order
+        self._block = self.rng.standard_normal(4096).tolist()[::-1]
 
     def take_normals(self, count: int) -> np.ndarray:
         """The next ``count`` draws of :meth:`_normal`'s stream, as an array (for the compiled loop)."""
@@ -52,7 +56,7 @@ class Sensors:
         i = 0
         while i < count:
             if not self._block:
-                self._block = self.rng.standard_normal(4096).tolist()[::-1]
+                self._refill()
             m = min(len(self._block), count - i)
             out[i:i + m] = self._block[:-m - 1:-1]  # the block is stored reversed; pop() takes from its end
             del self._block[-m:]

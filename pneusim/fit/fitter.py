@@ -112,7 +112,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
     model = ActuatorModel(effects)
     delay_s = model.command_delay_s()
     free = list(free) if free else _default_free(model)
-    check_free(free, model.param_names, rig.sections.get("known", ()))
+    check_free(free, model.param_names)
     searched = [name for name in free if name in SEARCHED]
     if searched:
         raise FitError(f"--free {searched[0]}: a transport delay moves the command switch times and has no "
@@ -199,7 +199,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
     return FitResult.build(
         recording=recording, rig=rig, model=model, free=free, parameters=parameters,
         correlation=uncertainty["correlation"][:len(free), :len(free)], params_vector=estimate,
-        n_estimation=n_est, sigma=uncertainty["sigma"], residual_rms=uncertainty["rms"],
+        n_estimation=n_est, sigma=uncertainty["sigma"],
         validation=validation, solver={"status": res.status, "success": res.success, "iterations": res.iterations,
                                        "seconds": time.perf_counter() - started, "ipopt_seconds": res.seconds,
                                        "max_defect": res.max_defect, "prefit_attempts": attempts,
@@ -220,9 +220,8 @@ def _resolve_rig(recording: Recording, rig) -> Rig:
         rig = recording.rig
     if not isinstance(rig, Rig):
         rig = load_rig(rig)
-    if recording.rig and recording.rig != rig.name:
-        # a user's own rig file may describe the rig under another name; the physical checks below decide
-        pass
+    # a recording may name another rig than the file given (a user's own copy of a data sheet): the
+    # physical checks below decide whether they match, not the names
     if abs(recording.sample_time_s - rig.sample_time_s) > 1e-9 * rig.sample_time_s:
         rig = rig.with_params({"sample_time_s": recording.sample_time_s})
     stroke = rig.stroke_m

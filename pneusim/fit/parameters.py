@@ -80,8 +80,9 @@ def parameter_bounds(name: str, start: float) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
-def check_free(names: Sequence[str], param_names: Sequence[str], known: Sequence[str]) -> None:
-    """Refuse free parameters the model does not have, or that the data sheet fixes."""
+def check_free(names: Sequence[str], param_names: Sequence[str]) -> None:
+    """Refuse free parameters the model does not have, or listed twice.  A parameter the data sheet
+    marks as known may be freed on request: a user may doubt a data-sheet value."""
     for name in names:
         if name not in param_names:
             effect = name.partition(".")[0] if "." in name else None
@@ -90,7 +91,5 @@ def check_free(names: Sequence[str], param_names: Sequence[str], known: Sequence
                                f"add --effect {effect}")
             raise FitError(f"--free {name}: not a parameter of this model; expected a rig parameter "
                            f"such as {', '.join(DEFAULT_FREE[:3])} or EFFECT.PARAM of a switched-on effect")
-        if name in known:
-            continue  # allowed on request: a user may doubt a data-sheet value
     if len(set(names)) != len(names):
         raise FitError(f"--free lists a parameter twice: {', '.join(names)}")

@@ -83,7 +83,6 @@ class FitResult:
     params_vector: np.ndarray
     n_estimation: int
     sigma: dict
-    residual_rms: dict
     validation: dict
     solver: dict
     warnings: list = field(default_factory=list)
@@ -92,7 +91,7 @@ class FitResult:
 
     @classmethod
     def build(cls, *, recording: Recording, rig: Rig, model: ActuatorModel, free, parameters, correlation,
-              params_vector, n_estimation, sigma, residual_rms, validation, solver, estimation_states):
+              params_vector, n_estimation, sigma, validation, solver, estimation_states):
         rig_updates = {k: p.estimate for k, p in parameters.items() if k in rig.params}
         effects = []
         for effect in model.effects:
@@ -105,7 +104,7 @@ class FitResult:
         result = cls(recording_name=str(recording.source or "recording"), rig=rig, rig_=rig.with_params(rig_updates),
                      model=model, effects_=effects, free=list(free), parameters=parameters,
                      correlation=np.asarray(correlation), params_vector=np.asarray(params_vector),
-                     n_estimation=n_estimation, sigma=sigma, residual_rms=residual_rms, validation=validation,
+                     n_estimation=n_estimation, sigma=sigma, validation=validation,
                      solver=solver, recording=recording, estimation_states=estimation_states)
         result.warnings = result._identifiability_warnings()
         return result

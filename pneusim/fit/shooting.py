@@ -274,8 +274,9 @@ class ShootingProblem:
         return e["matrices"]
 
     def trajectory(self, v: np.ndarray) -> np.ndarray:
-        """Model states at every sample (N, n), from the segments at ``v`` (segment starts at their own start state)."""
-        segs = self.simulate_segments(v, False)
+        """Model states at every sample (N, n), from the segments at ``v`` (segment starts at their own
+        start state; NaN where a segment failed).  Uses the cached evaluation at ``v`` when there is one."""
+        segs = self.evaluate(v, derivatives=False)["segments"]
         X = np.full((self.data.n_samples, self.n), np.nan)
         for j, seg in enumerate(segs):
             if seg is not None:

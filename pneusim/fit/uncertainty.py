@@ -15,11 +15,7 @@ def _residuals_and_states(pb: ShootingProblem, v: np.ndarray):
     e = pb.evaluate(v, True)
     if not e["ok"]:
         raise FitError("the model could not be integrated at the fitted parameters")
-    states = np.full((pb.data.n_samples, pb.n), np.nan)
-    for j, (x, _) in enumerate(e["segments"]):
-        ks = pb.samples_of(j)
-        states[ks] = x[ks - pb.starts[j]]
-    return e["r"], states
+    return e["r"], pb.trajectory(v)
 
 
 def covariance(pb: ShootingProblem, v: np.ndarray) -> dict:
@@ -63,7 +59,7 @@ def covariance(pb: ShootingProblem, v: np.ndarray) -> dict:
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(std, std)
     corr[~np.isfinite(corr)] = np.nan
-    return {"std": std, "correlation": corr, "sigma": sigma_hat, "rms": sigma_hat, "states": states}
+    return {"std": std, "correlation": corr, "sigma": sigma_hat, "states": states}
 
 
 def _rows_by_output(pb: ShootingProblem):

@@ -139,9 +139,7 @@ cdef void _kernel_free(Kernel* k) noexcept:
 
 cdef int _rhs(realtype t, N_Vector y, N_Vector ydot, void* data) noexcept nogil:
     cdef Problem* pb = <Problem*> data
-    pb.rhs.arg[0] = N_VGetArrayPointer(y)
-    pb.rhs.arg[1] = &pb.u
-    pb.rhs.arg[2] = pb.p
+    pb.rhs.arg[0] = N_VGetArrayPointer(y)       # arg[1] (u) and arg[2] (p) are set once, in __init__
     pb.rhs.res[0] = N_VGetArrayPointer(ydot)
     return pb.rhs.fn(pb.rhs.arg, pb.rhs.res, pb.rhs.iw, pb.rhs.w, 0)
 
@@ -151,8 +149,6 @@ cdef int _jac(realtype t, N_Vector y, N_Vector fy, SUNMatrix J, void* data,
     # SUNDIALS dense matrices and CasADi's dense outputs are both column-major
     cdef Problem* pb = <Problem*> data
     pb.jac.arg[0] = N_VGetArrayPointer(y)
-    pb.jac.arg[1] = &pb.u
-    pb.jac.arg[2] = pb.p
     pb.jac.res[0] = SUNDenseMatrix_Data(J)
     return pb.jac.fn(pb.jac.arg, pb.jac.res, pb.jac.iw, pb.jac.w, 0)
 
@@ -164,12 +160,7 @@ cdef int _sens(int ns, realtype t, N_Vector y, N_Vector ydot, N_Vector* yS, N_Ve
     cdef int n = pb.n
     for i in range(ns):
         memcpy(pb.s_in + i * n, N_VGetArrayPointer(yS[i]), n * sizeof(double))
-    pb.sens.arg[0] = N_VGetArrayPointer(y)
-    pb.sens.arg[1] = &pb.u
-    pb.sens.arg[2] = pb.p
-    pb.sens.arg[3] = pb.s_in
-    pb.sens.arg[4] = pb.weights
-    pb.sens.res[0] = pb.s_out
+    pb.sens.arg[0] = N_VGetArrayPointer(y)     # the other arguments and the result are fixed buffers
     flag = pb.sens.fn(pb.sens.arg, pb.sens.res, pb.sens.iw, pb.sens.w, 0)
     for i in range(ns):
         memcpy(N_VGetArrayPointer(ySdot[i]), pb.s_out + i * n, n * sizeof(double))
@@ -227,6 +218,7 @@ cdef class SensitivityIntegrator:
     def __init__(self, dict kernels, int n, int ns, double[::1] params, double[::1] weights,
                  double rtol, double[::1] atol, long max_steps=50000, bint sens_errcon=False):
         cdef int i
+        cdef Kernel* fixed[3]
         self.keep = (kernels, params, weights)   # the C side holds raw pointers into these
         for name in ("rhs", "jac", "sens"):
             k = kernels[name]
@@ -239,6 +231,15 @@ cdef class SensitivityIntegrator:
         self.pb.message[0] = 0
         self.pb.s_in = <double*> malloc(max(n * ns, 1) * sizeof(double))
         self.pb.s_out = <double*> malloc(max(n * ns, 1) * sizeof(double))
+        # the kernels' fixed arguments: the held input, the parameters (updated in place), and for the
+        # sensitivity kernel its input/output buffers and column weights; the callbacks set only the state
+        fixed[0], fixed[1], fixed[2] = &self.pb.rhs, &self.pb.jac, &self.pb.sens
+        for i in range(3):
+            fixed[i].arg[1] = &self.pb.u
+            fixed[i].arg[2] = self.pb.p
+        self.pb.sens.arg[3] = self.pb.s_in
+        self.pb.sens.arg[4] = self.pb.weights
+        self.pb.sens.res[0] = self.pb.s_out
         if SUNContext_Create(NULL, &self.ctx) != 0:
             raise MemoryError("SUNContext_Create failed")
         self.y = N_VNew_Serial(n, self.ctx)
@@ -346,13 +347,6 @@ cdef class SensitivityIntegrator:
                                 s_out[o, i, j] = N_VGetArrayPointer(self.yS[j])[i]
         message = self.pb.message.decode("utf-8", "replace") if self.pb.message[0] != 0 else ""
         return (flag if flag < 0 else 0), float(tret), message
-
-    def statistics(self):
-        cdef long steps = 0, rhs = 0
-        CVodeGetNumSteps(self.mem, &steps)
-        CVodeGetNumRhsEvals(self.mem, &rhs)
-        return {"steps": steps, "rhs_evaluations": rhs}
-
 
 cdef int _check(int flag, str where) except -1:
     if flag < 0:

@@ -53,15 +53,16 @@ def command_schedule(time_s: np.ndarray, command_V: np.ndarray, start: int, stop
     if delay_s <= 0.0:
         return samples.copy(), command_V[start:stop].copy(), np.arange(1, stop - start + 1, dtype=np.int64)
 
-    def seen(t):
-        # the latest command whose delayed arrival is at or before t (within rounding)
-        i = np.searchsorted(time_s + delay_s, t + 1e-9 * (time_s[1] - time_s[0]), side="right") - 1
-        return before if i < 0 else command_V[i]
-
     t0 = time_s[start]
     arrivals = time_s + delay_s
     switches = arrivals[(arrivals > t0) & (arrivals < time_s[stop])]
     eps = 1e-9 * (time_s[1] - time_s[0])
+
+    def seen(t):
+        # the latest command whose delayed arrival is at or before t (within rounding)
+        i = np.searchsorted(arrivals, t + eps, side="right") - 1
+        return before if i < 0 else command_V[i]
+
     points = np.unique(np.concatenate([samples, switches]))
     # merge points closer than rounding (a delay that is a whole number of samples)
     keep = np.concatenate([[True], np.diff(points) > eps])
@@ -116,16 +117,13 @@ class SensitivitySimulator:
         atol = np.ascontiguousarray(self.rtol * tolerance_scale)
         self._integrator = fast.SensitivityIntegrator(kernels, n, self.ns, self.params, self.weights,
                                                       self.rtol, atol)
+        # S(t0) (n, ns): zero for the parameters, diag(x_scale) for the initial state
+        self._s0 = np.zeros((n, self.ns))
+        self._s0[:, self.n_free:] = np.diag(self.x_scale)
 
     def set_params(self, params: np.ndarray) -> None:
         """Replace the parameter vector (SI units) in place: the compiled kernels read it."""
         self.params[:] = params
-
-    def initial_sensitivity(self) -> np.ndarray:
-        """``S(t0)`` (n, ns): zero for the parameters, ``diag(x_scale)`` for the initial state."""
-        s0 = np.zeros((self.n, self.ns))
-        s0[:, self.n_free:] = np.diag(self.x_scale)
-        return s0
 
     def run(self, t0: float, x0: np.ndarray, schedule, n_out: int, sensitivities: bool = True):
         """Integrate from ``(t0, x0)`` over ``schedule = (t_stop, u, out_index)``.
@@ -139,18 +137,14 @@ class SensitivitySimulator:
         x_out[0] = x0
         s_out = np.zeros((n_out if sensitivities else 1, self.n, self.ns))
         if sensitivities:
-            s_out[0] = self.initial_sensitivity()
+            s_out[0] = self._s0
         flag, t_reached, message = self._integrator.run(
-            float(t0), np.ascontiguousarray(x0, float), self.initial_sensitivity(), t_stop, u, out_index,
+            float(t0), np.ascontiguousarray(x0, float), self._s0, t_stop, u, out_index,
             x_out, s_out, sensitivities)
         if flag < 0:
             raise SolverError(f"CVODES failed at t = {t_reached:.6f} s (flag {flag}"
                               + (f": {message.strip()}" if message else "") + ")")
         return x_out, (s_out if sensitivities else None)
-
-    @property
-    def stats(self) -> dict:
-        return self._integrator.statistics()
 
 
 _KERNELS: dict = {}
