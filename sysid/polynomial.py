@@ -50,6 +50,13 @@ def reflect_roots(p: np.ndarray) -> np.ndarray:
     return q
 
 
+def std_of(covariance) -> np.ndarray | None:
+    """Standard deviations from a covariance matrix (None when there is none); rounding below zero clipped."""
+    if covariance is None:
+        return None
+    return np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+
+
 @dataclass
 class IDPoly:
     """Discrete-time polynomial model (ARX, ARMAX, OE, BJ and their parents).
@@ -143,9 +150,7 @@ class IDPoly:
     @property
     def std(self) -> np.ndarray | None:
         """Standard deviations of :attr:`parameters` (None when no covariance)."""
-        if self.covariance is None:
-            return None
-        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+        return std_of(self.covariance)
 
     def polynomial_std(self) -> dict:
         """Standard deviations laid out like ``A, B, C, D, F`` (zeros for fixed entries)."""

@@ -44,8 +44,7 @@ def load_recording(path, output: str = "position_m", input: str = "valve_cmd_V")
         meta, cols, where = _read_mat(path, [output, input, "time_s"])
     else:
         meta, cols, where = _read_csv(path, [output, input, "time_s"])
-    if meta.get("format") != FORMAT:
-        raise SysidError(f"{path}: metadata 'format' must be '{FORMAT}', got {meta.get('format')!r}.")
+    # the readers have checked 'format' first (_check_format_first)
     if "sample_time_s" not in meta:
         raise SysidError(f"{path}: metadata 'sample_time_s' is required.")
     try:

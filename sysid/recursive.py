@@ -35,7 +35,7 @@ from scipy.linalg.blas import dger
 from ._checks import check_data, check_forgetting, check_orders
 from .data import IDData
 from .errors import SysidError
-from .polynomial import IDPoly
+from .polynomial import IDPoly, std_of
 
 _dot = np.dot
 
@@ -135,13 +135,12 @@ class RecursiveARX:
         d = self.d
         v = _dot(self._MT, psi)            # [Q psi ; theta^T psi]
         k = v[:d]
-        s = self._s
-        den = s * self.forgetting + psi.dot(k)
+        lam = self.forgetting
+        s = self._s * lam
+        den = s + psi.dot(k)
         eps = y - v[d]
         v[d] = -eps
         dger(-1.0 / den, k, v, a=M, overwrite_a=1)
-        lam = self.forgetting
-        s *= lam
         post = eps * s / den               # a-posteriori residual y - psi^T theta(t)
         self._V = lam * self._V + eps * post
         n = self.n_updates + 1
@@ -211,7 +210,7 @@ class RecursiveARX:
     @property
     def std(self) -> np.ndarray:
         """Standard deviations of :attr:`parameters`, shape (d,)."""
-        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+        return std_of(self.covariance)
 
     def to_idpoly(self) -> IDPoly:
         """Current estimate as an :class:`IDPoly` (ARX or ARMAX) with its covariance."""

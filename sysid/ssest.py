@@ -13,7 +13,7 @@ from __future__ import annotations
 from ._blas import one_blas_thread
 from ._checks import check_data
 from .data import IDData
-from .pem import PEM
+from .pem import ARMAX
 from .polynomial import is_stable_poly
 from .statespace import IDSS, idss_from_armax
 from .subspace import N4SID
@@ -55,9 +55,7 @@ class SSEst:
         nk = 0 if self.feedthrough else 1
         nb = nx + 1 if self.feedthrough else nx
         p0 = p0 if (p0.nk, p0.nb, p0.na, p0.nc) == (nk, nb, nx, nx) and is_stable_poly(p0.C) else None
-        est = PEM(na=nx, nb=nb, nc=nx, nk=nk, max_iter=self.max_iter, tol=self.tol, init_sys=p0)
-        est.structure = "armax"
-        p = est.fit(data)
+        p = ARMAX(nx, nb, nx, nk, max_iter=self.max_iter, tol=self.tol, init_sys=p0).fit(data)
         model = idss_from_armax(p, noise_variance=p.noise_variance, covariance=p.covariance,
                                 loss=p.loss, n_samples=p.n_samples,
                                 singular_values=start.singular_values, report=dict(p.report))

@@ -16,7 +16,7 @@ import numpy as np
 from scipy.signal import ss2tf
 
 from .errors import SysidError
-from .polynomial import IDPoly
+from .polynomial import IDPoly, std_of
 
 __all__ = ["IDSS", "idss_from_armax"]
 
@@ -90,9 +90,7 @@ class IDSS:
     @property
     def std(self) -> np.ndarray | None:
         """Standard deviations of :attr:`parameters` (None when no covariance)."""
-        if self.covariance is None:
-            return None
-        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+        return std_of(self.covariance)
 
     def poles(self) -> np.ndarray:
         """Eigenvalues of ``A`` (z-plane)."""

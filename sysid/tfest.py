@@ -29,7 +29,7 @@ from ._blas import one_blas_thread
 from ._checks import check_data, check_enough_data, check_order
 from .data import IDData
 from .errors import SysidError
-from .polynomial import IDPoly
+from .polynomial import IDPoly, std_of
 
 __all__ = ["IDTF", "TFEst", "tfest"]
 
@@ -76,7 +76,7 @@ class IDTF:
     @property
     def std(self) -> np.ndarray | None:
         """Standard deviations of :attr:`parameters`."""
-        return None if self.covariance is None else np.sqrt(np.clip(np.diag(self.covariance), 0, None))
+        return std_of(self.covariance)
 
     @property
     def delay_samples(self) -> int:
