@@ -93,7 +93,8 @@ def band_behaviour(band: list[dict], stable: bool, delay_s: float, record_s: flo
             parts.append(f"type 0 over the band (static gain {lo['gain']:.3g}, phase {lo['phase_deg']:.0f} deg "
                          f"at {lo['f_Hz']:g} Hz)")
         else:
-            parts.append(f"neither integrator nor static gain (phase {lo['phase_deg']:.0f} deg at {lo['f_Hz']:g} Hz)")
+            # worded without "integrator" / "type 0": the report's tables classify readings by those words
+            parts.append(f"neither integrating nor a static gain (phase {lo['phase_deg']:.0f} deg at {lo['f_Hz']:g} Hz)")
     return "; ".join(parts)
 
 
