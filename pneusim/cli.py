@@ -17,8 +17,8 @@ from .errors import PneusimError
 
 __all__ = ["main", "COMMANDS"]
 
-#: sub-command modules, in the order of ``pneusim --help``
-COMMANDS = ("simulate", "check", "fit", "run", "sweep")
+#: sub-commands, in the order of ``pneusim --help``; a hyphen in a name is an underscore in its module
+COMMANDS = ("simulate", "check", "fit", "diagnose", "run", "sweep", "mre", "serve-rig", "rigs", "effects", "plot", "friction")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -28,10 +28,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"pneusim {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
+        module_name = f"pneusim.commands.{name.replace('-', '_')}"   # serve-rig lives in serve_rig.py
         try:
-            module = importlib.import_module(f"pneusim.commands.{name}")
+            module = importlib.import_module(module_name)
         except ModuleNotFoundError as exc:
-            if exc.name != f"pneusim.commands.{name}":
+            if exc.name != module_name:
                 raise
             continue
         module.register(sub)
@@ -40,12 +41,23 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:   # argparse: --help, --version (exit 0) or a refused option (2, one line printed)
+        if exc.code in (0, None):
+            raise
+        return exc.code if isinstance(exc.code, int) else 2
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    args.argv = argv   # recordings write the command that made them
     try:
         return int(args.func(args) or 0)
+    except BrokenPipeError:
+        # the reader went away (``pneusim check ... | head``): stop quietly, as cat and grep do
+        _silence_stdout()
+        return 0
     except PneusimError as exc:
         print(f"pneusim {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -58,6 +70,17 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null so that Python's flush at exit does not report the broken pipe again."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
 
 
 if __name__ == "__main__":

@@ -28,26 +28,43 @@ from typing import Mapping
 import numpy as np
 
 from .errors import InputFileError
-from .rig import known_stroke_m
 
-__all__ = ["Recording", "read_recording", "write_recording", "summarize", "FORMAT",
+__all__ = ["Recording", "read_recording", "write_recording", "summarize", "check_plausible", "end_stop_time", "FORMAT",
            "REQUIRED_COLUMNS", "OPTIONAL_COLUMNS", "PRESSURE_COLUMNS", "MIN_SAMPLES"]
 
-FORMAT = "pneusim-recording/1"
-REQUIRED_COLUMNS = ("time_s", "valve_cmd_V", "position_m")
+
+def _load_format_rules():
+    """The value rules of the format, which live once in ``sysid/_format_rules.py`` (sysid's reader uses
+    them too and must not import pneusim).  The module depends on NumPy only; it is loaded by its file
+    so that reading a recording does not import all of sysid (SciPy's signal and stats: seconds)."""
+    import importlib.util
+    import sys
+
+    name = "sysid._format_rules"
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.find_spec("sysid")
+    path = Path(spec.submodule_search_locations[0]) / "_format_rules.py"
+    module_spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(module_spec)
+    sys.modules[name] = module
+    module_spec.loader.exec_module(module)
+    return module
+
+
+rules = _load_format_rules()
+FORMAT, MIN_SAMPLES, POSITION_MARGIN = rules.FORMAT, rules.MIN_SAMPLES, rules.POSITION_MARGIN
+PRESSURE_COLUMNS, PRESSURE_MAX_PA, REQUIRED_COLUMNS, TIME_RTOL = (rules.PRESSURE_COLUMNS, rules.PRESSURE_MAX_PA,
+                                                                 rules.REQUIRED_COLUMNS, rules.TIME_RTOL)
+
 #: ``reference_m`` is required too when ``loop: closed``
 OPTIONAL_COLUMNS = ("reference_m", "pressure_a_Pa", "pressure_b_Pa", "supply_Pa")
-PRESSURE_COLUMNS = ("pressure_a_Pa", "pressure_b_Pa", "supply_Pa")
 SIGNALS = ("time_s", "reference_m", "valve_cmd_V", "position_m") + PRESSURE_COLUMNS
 CONTROLLER_KEYS = ("kp_V_per_m", "u0_V", "u_min_V", "u_max_V")
-MIN_SAMPLES = 50
-TIME_RTOL = 1e-6              #: spacing tolerance, relative to ``sample_time_s``
-POSITION_MARGIN = 0.01        #: position allowed in [-1 %, 101 %] of the stroke
-PRESSURE_MAX_PA = 2.0e6
 
 _KEY = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 _META = re.compile(r"#\s*([A-Za-z][A-Za-z0-9_]*)\s*:(.*)\Z")
-_NUMBER = re.compile(r"\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*\Z|\s*[+-]?(nan|inf|infinity)\s*\Z", re.I)
+_NUMBER = rules.NUMBER
 
 
 @dataclasses.dataclass
@@ -58,6 +75,13 @@ class _Place:
     key_lines: Mapping[str, int] = dataclasses.field(default_factory=dict)
     header_line: int | None = None
     first_row_line: int | None = None   #: CSV line of sample 0; None: name samples instead
+
+    def problem(self, problem: "rules.Problem | None") -> None:
+        """Raise the error of a broken format rule (see :mod:`sysid._format_rules`), if any."""
+        if problem is not None:
+            if problem.key is not None:
+                self.fail(problem.message, problem.column, key=problem.key)
+            self.fail(problem.message, problem.column, row=problem.row, header=problem.row is None)
 
     def fail(self, message: str, field: str | None = None, *, key: str | None = None,
              row: int | None = None, header: bool = False):
@@ -114,6 +138,8 @@ class Recording:
     metadata: dict[str, str] = dataclasses.field(default_factory=dict)
     extra: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
     source: str | None = None
+    #: CSV line of sample 0 when read from a CSV file (to name lines in messages), else ``None``
+    first_row_line: int | None = dataclasses.field(default=None, repr=False)
 
     def __post_init__(self):
         place = _Place()
@@ -223,13 +249,7 @@ def _check_metadata(meta: Mapping[str, str], place: _Place) -> None:
     if fmt != FORMAT:
         what = "unknown format version" if fmt.startswith("pneusim-recording/") else "unknown format"
         place.fail(f"{what} {fmt!r}; expected {FORMAT!r}", "format", key="format")
-    if "sample_time_s" not in meta:
-        place.fail("missing metadata 'sample_time_s'; expected the sample time in seconds, "
-                   "e.g. '# sample_time_s: 0.01'", "sample_time_s", header=True)
-    dt = _number(meta, "sample_time_s", place)
-    if not dt > 0:
-        place.fail(f"sample time must be positive, got {meta['sample_time_s']!r}", "sample_time_s",
-                   key="sample_time_s")
+    place.problem(rules.check_sample_time(meta.get("sample_time_s")))
     if "loop" in meta and meta["loop"] not in ("open", "closed"):
         place.fail(f"expected 'open' or 'closed', got {meta['loop']!r}", "loop", key="loop")
     if "controller" in meta:
@@ -267,50 +287,9 @@ def _check_columns(cols: Mapping[str, np.ndarray], meta: Mapping[str, str], plac
             place.fail(f"has {values.shape[0]} samples but time_s has {n}", name)
     if n < min_samples:
         place.fail(f"only {n} samples; a recording needs at least {min_samples}", "time_s", header=True)
-    for name, values in cols.items():
-        bad = np.flatnonzero(~np.isfinite(values) if name in required else np.isinf(values))
-        if bad.size:
-            what = "NaN" if np.isnan(values[bad[0]]) else "infinity"
-            place.fail(f"{what} in a required column; expected a finite number" if name in required
-                       else f"{what}; expected a finite number or an empty cell (gap)", name, row=int(bad[0]))
-    _check_time(cols["time_s"], meta, place)
-    for name in PRESSURE_COLUMNS:
-        if name in cols:
-            with np.errstate(invalid="ignore"):
-                bad = np.flatnonzero((cols[name] < 0) | (cols[name] > PRESSURE_MAX_PA))
-            if bad.size:
-                place.fail(f"pressure {cols[name][bad[0]]!r} Pa is outside [0 Pa, 2 MPa]; expected absolute "
-                           "pressure in Pa (gauge pressure, or bar/kPa written as Pa?)", name, row=int(bad[0]))
-    if stroke_m is not None:
-        pos = cols["position_m"]
-        lo, hi = -POSITION_MARGIN * stroke_m, (1 + POSITION_MARGIN) * stroke_m
-        bad = np.flatnonzero((pos < lo) | (pos > hi))
-        if bad.size:
-            place.fail(f"position {pos[bad[0]]!r} m is outside [-1 %, 101 %] of the stroke {stroke_m!r} m "
-                       f"([{lo:.6g}, {hi:.6g}] m); it looks like millimetres or volts written as metres",
-                       "position_m", row=int(bad[0]))
-
-
-def _check_time(t: np.ndarray, meta: Mapping[str, str], place: _Place) -> None:
-    if t.shape[0] < 2:
-        return
-    dt = float(meta["sample_time_s"])
-    step = np.diff(t)
-    bad = np.flatnonzero(step <= 0)
-    if bad.size:
-        i = int(bad[0]) + 1
-        place.fail(f"time {t[i]!r} s is not after the previous sample {t[i - 1]!r} s; "
-                   "expected strictly increasing time", "time_s", row=i)
-    tol = TIME_RTOL * dt
-    median = float(np.median(step))
-    if abs(median - dt) > tol:
-        place.fail(f"the time_s spacing is {median!r} s but sample_time_s is {dt!r} s; "
-                   f"expected them to agree within {TIME_RTOL:g} relative", "sample_time_s", key="sample_time_s")
-    bad = np.flatnonzero(np.abs(step - dt) > tol)
-    if bad.size:
-        i = int(bad[0]) + 1
-        place.fail(f"time step {step[i - 1]!r} s from the previous sample; expected uniform sampling at "
-                   f"{dt!r} s within {TIME_RTOL:g} relative", "time_s", row=i)
+    place.problem(rules.check_values(cols, required, None))
+    place.problem(rules.check_time(cols["time_s"], float(meta["sample_time_s"])))
+    place.problem(rules.check_values({"position_m": cols["position_m"]}, required, stroke_m))
 
 
 # ------------------------------------------------------------------ reading
@@ -346,10 +325,10 @@ def read_recording(path: str | Path, stroke_m: float | None = None) -> Recording
     meta, cols, place = (_parse_csv if suffix == ".csv" else _parse_mat)(path)
     _check_metadata(meta, place)
     if stroke_m is None and meta.get("rig"):
-        stroke_m = known_stroke_m(meta["rig"])
+        stroke_m = rules.stroke_of(meta["rig"])
     _check_columns(cols, meta, place, stroke_m=stroke_m)
     signals = {name: cols.pop(name) for name in SIGNALS if name in cols}
-    return Recording(**signals, metadata=meta, extra=cols, source=str(path))
+    return Recording(**signals, metadata=meta, extra=cols, source=str(path), first_row_line=place.first_row_line)
 
 
 def _parse_csv(path: Path):
@@ -522,3 +501,79 @@ def summarize(recording: Recording) -> str:
     if other:
         out.append("other metadata: " + ", ".join(f"{k}={v}" for k, v in other.items()))
     return "\n".join(out)
+
+
+# ------------------------------------------------------------------ plausibility for a rig
+#: a command may exceed the valve's range by this fraction of the range (rounding of a DAQ)
+COMMAND_MARGIN = 0.01
+#: pressures may lie this far below the lower of atmosphere and exhaust (a chamber drawn below
+#: atmosphere by a fast stroke, sensor offset), as a fraction of it
+PRESSURE_LOW_MARGIN = 0.2
+#: pressures may lie this far above the supply, as a fraction of the supply gauge pressure
+PRESSURE_HIGH_MARGIN = 0.1
+#: a position within this fraction of the stroke from an end counts as "at the end stop"
+END_STOP_BAND = 0.005
+
+
+def check_plausible(recording: Recording, rig) -> None:
+    """Refuse a recording that its rig cannot have made (one :class:`InputFileError` naming the sample).
+
+    Checks: every valve command inside ``[valve_min_V, valve_max_V]`` (give or take
+    :data:`COMMAND_MARGIN` of the range); every pressure (A, B, supply) between a little below
+    atmosphere/exhaust and a little above the supply (:data:`PRESSURE_LOW_MARGIN`,
+    :data:`PRESSURE_HIGH_MARGIN`: a pressure written in bar or kPa is refused); every position and
+    reference within [-1 %, 101 %] of the rig's stroke.  Gaps (NaN) are skipped.
+    """
+    p = rig.params
+    lo_v, hi_v = p["valve_min_V"], p["valve_max_V"]
+    margin_v = COMMAND_MARGIN * (hi_v - lo_v)
+    low_pa = (1.0 - PRESSURE_LOW_MARGIN) * min(p["atmosphere_Pa"], p["exhaust_Pa"])
+    high_pa = p["supply_Pa"] + PRESSURE_HIGH_MARGIN * (p["supply_Pa"] - p["atmosphere_Pa"])
+    stroke = rig.stroke_m
+    limits = {"valve_cmd_V": (lo_v - margin_v, hi_v + margin_v, "V",
+                              f"the valve's command range [{lo_v:g}, {hi_v:g}] V of rig {rig.name}"),
+              "position_m": (-POSITION_MARGIN * stroke, (1 + POSITION_MARGIN) * stroke, "m",
+                             f"[-1 %, 101 %] of the stroke {stroke:g} m of rig {rig.name}"),
+              "reference_m": (-POSITION_MARGIN * stroke, (1 + POSITION_MARGIN) * stroke, "m",
+                              f"[-1 %, 101 %] of the stroke {stroke:g} m of rig {rig.name}")}
+    for name in PRESSURE_COLUMNS:
+        limits[name] = (low_pa, high_pa, "Pa", f"[{low_pa:.6g}, {high_pa:.6g}] Pa absolute, from a little below "
+                        f"atmosphere to a little above the supply {p['supply_Pa']:.6g} Pa of rig {rig.name}"
+                        " (pressure written in bar or kPa, or gauge?)")
+    for name, (lo, hi, unit, what) in limits.items():
+        values = getattr(recording, name)
+        if values is None:
+            continue
+        with np.errstate(invalid="ignore"):
+            bad = np.flatnonzero((values < lo) | (values > hi))
+        if bad.size:
+            i = int(bad[0])
+            line = None if recording.first_row_line is None else recording.first_row_line + i
+            where = "" if line is not None else f"sample {i + 1}: "
+            raise InputFileError(f"{where}{values[i]!r} {unit} at t = {recording.time_s[i]:.6g} s is outside {what}; "
+                                 f"{bad.size} of {values.size} samples are", path=recording.source, line=line,
+                                 field=name)
+
+
+def end_stop_time(recording: Recording, stroke_m: float) -> dict[str, float]:
+    """Time the recorded position spends at an end stop, in s: ``{"retracted_s", "extended_s", "total_s",
+    "fraction"}``.  A sample is at a stop when its position is within :data:`END_STOP_BAND` of the
+    stroke from that end (or beyond it)."""
+    x = recording.position_m
+    band = END_STOP_BAND * stroke_m
+    ts = recording.sample_time_s
+    retracted = float(np.count_nonzero(x <= band)) * ts
+    extended = float(np.count_nonzero(x >= stroke_m - band)) * ts
+    total = retracted + extended
+    return {"retracted_s": retracted, "extended_s": extended, "total_s": total,
+            "fraction": total / (recording.n_samples * ts)}
+
+
+def end_stop_text(recording: Recording, stroke_m: float) -> str:
+    """One line for people: the time at an end stop (and a warning word for an open-loop run that sits there)."""
+    stops = end_stop_time(recording, stroke_m)
+    text = (f"time at an end stop: {stops['total_s']:.6g} s ({100 * stops['fraction']:.3g} % of the run; "
+            f"retracted {stops['retracted_s']:.6g} s, extended {stops['extended_s']:.6g} s)")
+    if stops["fraction"] > 0.05 and recording.loop != "closed":
+        text += " -- warning: the open-loop run drives the piston into a stop; the data there say little"
+    return text

@@ -13,6 +13,8 @@ a user copies one and edits it to describe their own rig.
 from __future__ import annotations
 
 import dataclasses
+import difflib
+import math
 
 from pathlib import Path
 from typing import Mapping
@@ -20,7 +22,7 @@ from typing import Mapping
 from .errors import InputFileError, PneusimError
 from .tomlfile import read_toml
 
-__all__ = ["Rig", "load_rig", "known_rig_names", "known_stroke_m", "RIG_SECTIONS"]
+__all__ = ["Rig", "load_rig", "known_rig_names", "rig_variant_names", "known_stroke_m", "RIG_SECTIONS"]
 
 RIG_DIR = Path(__file__).with_name("rigs")
 RIG_SECTIONS = ("known", "typical", "model", "sensors")
@@ -44,11 +46,73 @@ DEFAULTS = {
                 "pressure_noise_std_Pa": 0.0, "pressure_quantum_Pa": 0.0},
 }
 
-#: physical lower bounds (exclusive) used to refuse impossible values
-POSITIVE = ("bore_m", "stroke_m", "supply_Pa", "exhaust_Pa", "atmosphere_Pa", "supply_temperature_K",
-            "sample_time_s", "moving_mass_kg", "dead_volume_a_m3", "dead_volume_b_m3",
-            "valve_sonic_conductance_m3_per_s_Pa", "friction_stribeck_velocity_m_per_s",
-            "friction_smoothing_velocity_m_per_s", "endstop_stiffness_N_per_m")
+#: parameters a rig file may give besides the required ones and the defaults, by section
+OPTIONAL = {"known": ("position_sensor_V_per_m",)}
+
+_INF = math.inf
+
+#: physical range of every parameter: ``name: (low, high, low_included, high_included, unit)``;
+#: pairs (supply above exhaust, null between the valve's limits, rod thinner than the bore) are
+#: checked by :func:`_check_values`
+RANGES = {
+    "bore_m": (0.0, _INF, False, False, "m"),
+    "rod_m": (0.0, _INF, True, False, "m"),
+    "stroke_m": (0.0, _INF, False, False, "m"),
+    "supply_Pa": (0.0, _INF, False, False, "Pa absolute"),
+    "exhaust_Pa": (0.0, _INF, False, False, "Pa absolute"),
+    "atmosphere_Pa": (0.0, _INF, False, False, "Pa absolute"),
+    "supply_temperature_K": (0.0, _INF, False, False, "K"),
+    "sample_time_s": (0.0, _INF, False, False, "s"),
+    "valve_null_V": (-_INF, _INF, False, False, "V"),
+    "valve_min_V": (-_INF, _INF, False, False, "V"),
+    "valve_max_V": (-_INF, _INF, False, False, "V"),
+    "position_sensor_V_per_m": (0.0, _INF, False, False, "V/m"),
+    "moving_mass_kg": (0.0, _INF, False, False, "kg"),
+    "dead_volume_a_m3": (0.0, _INF, False, False, "m3"),
+    "dead_volume_b_m3": (0.0, _INF, False, False, "m3"),
+    "valve_sonic_conductance_m3_per_s_Pa": (0.0, _INF, False, False, "m3/(s Pa)"),
+    "valve_critical_pressure_ratio": (0.0, 1.0, False, False, ""),
+    "friction_static_N": (0.0, _INF, True, False, "N"),
+    "friction_coulomb_N": (0.0, _INF, True, False, "N"),
+    "friction_stribeck_velocity_m_per_s": (0.0, _INF, False, False, "m/s"),
+    "friction_viscous_N_s_per_m": (0.0, _INF, True, False, "N s/m"),
+    "friction_smoothing_velocity_m_per_s": (0.0, _INF, False, False, "m/s"),
+    "endstop_stiffness_N_per_m": (0.0, _INF, False, False, "N/m"),
+    "endstop_damping_N_s_per_m": (0.0, _INF, True, False, "N s/m"),
+    "position_noise_std_m": (0.0, _INF, True, False, "m"),
+    "position_adc_bits": (0.0, 32.0, True, True, "bits"),
+    "pressure_noise_std_Pa": (0.0, _INF, True, False, "Pa"),
+    "pressure_quantum_Pa": (0.0, _INF, True, False, "Pa"),
+}
+#: parameters that must be whole numbers
+INTEGER = ("position_adc_bits",)
+
+#: kept for callers of the old name: parameters that must be > 0
+POSITIVE = tuple(k for k, (lo, _hi, lo_in, _hi_in, _u) in RANGES.items() if lo == 0.0 and not lo_in)
+
+
+def allowed_parameters() -> dict[str, tuple[str, ...]]:
+    """``{section: parameter names}`` a rig file may hold (required, optional and defaulted)."""
+    return {section: tuple(dict.fromkeys(REQUIRED.get(section, ()) + OPTIONAL.get(section, ())
+                                         + tuple(DEFAULTS.get(section, {}))))
+            for section in RIG_SECTIONS}
+
+
+def range_text(name: str) -> str:
+    """The allowed range of a rig parameter in words, e.g. ``'> 0 kg'`` or ``'in (0, 1)'``."""
+    lo, hi, lo_in, hi_in, unit = RANGES[name]
+    unit = f" {unit}" if unit else ""
+    if hi == _INF and lo == -_INF:
+        return f"a finite number{unit}"
+    if hi == _INF:
+        return f"{'>=' if lo_in else '>'} {lo:g}{unit}"
+    return f"in {'[' if lo_in else '('}{lo:g}, {hi:g}{']' if hi_in else ')'}{unit}"
+
+
+def suggest(name: str, candidates) -> str:
+    """``"; did you mean 'x'?"`` for a misspelt name, or an empty string."""
+    close = difflib.get_close_matches(name, list(candidates), n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -70,6 +134,17 @@ class Rig:
     params: Mapping[str, float]
     sections: Mapping[str, tuple[str, ...]]
     source: str = ""
+    #: parameters changed by :meth:`with_params` since the rig was loaded, ``{name: value}``
+    #: (written into recordings so that a run can be repeated)
+    overrides: Mapping[str, float] = dataclasses.field(default_factory=dict)
+    #: optional effects of a rig variant's ``[effects.NAME]`` tables, in ``NAME:PARAM=VALUE,...`` form;
+    #: data only: a scenario adds them to its effect list, :func:`pneusim.simulate.simulate` does not
+    effects: tuple[str, ...] = ()
+    #: the data-sheet rig a variant file describes more realistically ("" for a data-sheet rig)
+    variant_of: str = ""
+    #: the ``[daq]`` section (channels, ranges, volts per metre) as a :class:`pneusim.mre.daq.DaqConfig`,
+    #: or ``None``; used by the mixed-reality environment's ``nidaqmx`` plant
+    daq: object = None
 
     def __getitem__(self, key: str) -> float:
         return self.params[key]
@@ -82,22 +157,71 @@ class Rig:
     def sample_time_s(self) -> float:
         return float(self.params["sample_time_s"])
 
-    def with_params(self, overrides: Mapping[str, float]) -> "Rig":
-        """Return a copy with some parameters replaced; unknown names are refused."""
+    def with_params(self, overrides: Mapping[str, float], origin: str | None = None) -> "Rig":
+        """Return a copy with some parameters replaced; unknown names and values out of range are refused.
+
+        ``origin`` names where the overrides come from (e.g. ``"--param"``) so that a bad value is
+        blamed on it rather than on the rig file.
+        """
         unknown = sorted(set(overrides) - set(self.params))
         if unknown:
-            raise PneusimError(
-                f"rig '{self.name}' has no parameter {unknown[0]!r}; known parameters are: "
-                + ", ".join(sorted(self.params)))
+            where = f"{origin} {unknown[0]}: " if origin else ""
+            hint = suggest(unknown[0], self.params) or ("; known parameters are: " + ", ".join(sorted(self.params)))
+            raise PneusimError(f"{where}rig '{self.name}' has no parameter {unknown[0]!r}{hint}")
         params = dict(self.params)
-        params.update({k: float(v) for k, v in overrides.items()})
-        _check_values(params, self.source or self.name)
-        return dataclasses.replace(self, params=params)
+        for key, value in overrides.items():
+            try:
+                params[key] = float(value)
+            except (TypeError, ValueError):
+                raise PneusimError(f"{origin + ' ' if origin else ''}{key}: expected a number, got {value!r}") from None
+        _check_values(params, self.source or self.name, overridden=overrides, origin=origin or "override")
+        changed = {**self.overrides, **{k: params[k] for k in overrides}}
+        return dataclasses.replace(self, params=params, overrides=changed)
+
+    @property
+    def is_shipped(self) -> bool:
+        """True for a rig that ships with pneusim (``load_rig(name)`` finds it by name)."""
+        return bool(self.source) and Path(self.source).resolve() == (RIG_DIR / f"{self.name}.toml").resolve()
+
+    def to_toml(self) -> str:
+        """This rig as a rig file (the text :func:`load_rig` reads back to the same parameters)."""
+        lines = [f"# Rig file for pneusim ({self.name}); every name carries its SI unit.",
+                 f"name = {_toml_string(self.name)}",
+                 f"description = {_toml_string(self.description)}"]
+        for section in RIG_SECTIONS:
+            lines += ["", f"[{section}]"]
+            lines += [f"{key} = {float(self.params[key])!r}" for key in self.sections.get(section, ())]
+        return "\n".join(lines) + "\n"
+
+
+def _toml_string(text: str) -> str:
+    import json
+
+    return json.dumps(str(text))   # a JSON string is a valid TOML basic string
+
+
+def write_rig(rig: Rig, path: str | Path) -> Path:
+    """Write ``rig`` as a rig file (``.toml``) that ``load_rig`` and ``--rig PATH`` accept."""
+    path = Path(path)
+    path.write_text(rig.to_toml(), encoding="utf-8")
+    return path
 
 
 def known_rig_names() -> list[str]:
-    """Names of the rigs shipped with pneusim."""
-    return sorted(p.stem for p in RIG_DIR.glob("*.toml"))
+    """Names of the data-sheet rigs shipped with pneusim (the rigs of ``shared/spec/rigs.toml``)."""
+    return sorted(p.stem for p in RIG_DIR.glob("*.toml") if not _is_variant(p))
+
+
+def rig_variant_names() -> list[str]:
+    """Names of the shipped rig variants (files with ``variant_of``, e.g. ``paper2-enfield-realistic``)."""
+    return sorted(p.stem for p in RIG_DIR.glob("*.toml") if _is_variant(p))
+
+
+def _is_variant(path: Path) -> bool:
+    try:
+        return "variant_of" in read_toml(path, "rig")
+    except InputFileError:
+        return False
 
 
 def load_rig(name_or_path: str | Path) -> Rig:
@@ -114,12 +238,12 @@ def load_rig(name_or_path: str | Path) -> Rig:
         path = RIG_DIR / f"{text_name}.toml"
         if not path.exists():
             raise InputFileError(
-                f"unknown rig {text_name!r}; expected one of {', '.join(known_rig_names())} "
+                f"unknown rig {text_name!r}; expected one of {', '.join(known_rig_names() + rig_variant_names())} "
                 "or the path of a rig file (.toml)")
     data = read_toml(path, "rig")
-    unknown_sections = sorted(set(data) - set(RIG_SECTIONS) - {"name", "description"})
+    unknown_sections = sorted(set(data) - set(RIG_SECTIONS) - {"name", "description", "variant_of", "effects", "daq"})
     if unknown_sections:
-        raise InputFileError(f"unknown section; expected one of {', '.join(RIG_SECTIONS)}",
+        raise InputFileError(f"unknown section; expected one of {', '.join(RIG_SECTIONS + ('effects', 'daq'))}",
                              path=path, field=unknown_sections[0])
     params: dict[str, float] = {}
     sections: dict[str, tuple[str, ...]] = {}
@@ -128,7 +252,12 @@ def load_rig(name_or_path: str | Path) -> Rig:
         given = data.get(section, {})
         if not isinstance(given, dict):
             raise InputFileError(f"[{section}] must be a table of NAME = number", path=path, field=section)
+        allowed = allowed_parameters()[section]
         for key, value in given.items():
+            if key not in allowed:
+                others = [k for sec in RIG_SECTIONS for k in allowed_parameters()[sec]]
+                raise InputFileError(f"unknown parameter{suggest(key, others)} (a [{section}] parameter is one "
+                                     f"of: {', '.join(allowed)})", path=path, field=f"{section}.{key}")
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise InputFileError(f"expected a number, got {value!r}", path=path, field=f"{section}.{key}")
             if key in params:
@@ -141,19 +270,79 @@ def load_rig(name_or_path: str | Path) -> Rig:
         sections[section] = tuple(table)
     _check_values(params, str(path))
     return Rig(name=str(data.get("name", path.stem)), description=str(data.get("description", "")),
-               params=params, sections=sections, source=str(path))
+               params=params, sections=sections, source=str(path), effects=_effects_section(data, path),
+               variant_of=str(data.get("variant_of", "")), daq=_daq_section(data, path, params))
 
 
-def _check_values(params: Mapping[str, float], where: str) -> None:
-    for key in POSITIVE:
-        if key in params and not params[key] > 0:
-            raise InputFileError(f"must be positive, got {params[key]!r}", path=where, field=key)
-    if params["rod_m"] < 0 or params["rod_m"] >= params["bore_m"]:
-        raise InputFileError("rod diameter must be in [0, bore_m)", path=where, field="rod_m")
-    if not 0.0 < params["valve_critical_pressure_ratio"] < 1.0:
-        raise InputFileError("must be in (0, 1)", path=where, field="valve_critical_pressure_ratio")
-    if params["friction_static_N"] < 0 or params["friction_coulomb_N"] < 0 or params["friction_viscous_N_s_per_m"] < 0:
-        raise InputFileError("friction parameters must not be negative", path=where, field="friction_*")
+def _daq_section(data: dict, path: Path, params: Mapping[str, float]):
+    """The ``[daq]`` table checked into a :class:`pneusim.mre.daq.DaqConfig`, or ``None`` when absent."""
+    if "daq" not in data:
+        return None
+    from .mre.daq import parse_daq_section
+
+    return parse_daq_section(data["daq"], path, dict(params))
+
+
+def _effects_section(data: dict, path: Path) -> tuple[str, ...]:
+    """``[effects.NAME]`` tables (``PARAM = value``, options as strings) -> ``("NAME:PARAM=VALUE,...", ...)``,
+    each checked by building the effect."""
+    from .model import parse_effect_text
+
+    table = data.get("effects", {})
+    if not isinstance(table, dict):
+        raise InputFileError("[effects] must hold [effects.NAME] tables", path=path, field="effects")
+    texts = []
+    for name, values in table.items():
+        if not isinstance(values, dict):
+            raise InputFileError("expected a table [effects.NAME] of PARAM = value", path=path,
+                                 field=f"effects.{name}")
+        text = name + (":" + ",".join(f"{k}={v}" for k, v in values.items()) if values else "")
+        try:
+            parse_effect_text(text)
+        except PneusimError as exc:
+            raise InputFileError(str(exc), path=path, field=f"effects.{name}") from None
+        texts.append(text)
+    return tuple(texts)
+
+
+def _check_values(params: Mapping[str, float], where: str, overridden: Mapping[str, float] = (),
+                  origin: str = "override") -> None:
+    """Refuse a value outside its physical range, naming the parameter and the range.
+
+    A fault that involves an overridden parameter is blamed on ``origin`` (``--param``, a scenario's
+    ``rig.overrides``); any other on the rig file ``where``.
+    """
+    def fail(keys: tuple[str, ...], message: str):
+        blamed = [k for k in keys if k in overridden]
+        if blamed:
+            err = InputFileError(f"{origin} {blamed[0]}={params[blamed[0]]!r}: {message}")
+            err.field, err.reason = blamed[0], message   # a scenario names its own key from these
+            raise err
+        raise InputFileError(message, path=where, field=keys[0])
+
+    for key, value in params.items():
+        if key not in RANGES:
+            continue
+        lo, hi, lo_in, hi_in, _unit = RANGES[key]
+        ok = math.isfinite(value) and (value >= lo if lo_in else value > lo) and (value <= hi if hi_in else value < hi)
+        if ok and key in INTEGER and value != int(value):
+            ok = False
+        if not ok:
+            if lo == 0.0 and not lo_in and hi == _INF:
+                fail((key,), f"must be positive ({range_text(key)}), got {value!r}")
+            if key in INTEGER:
+                fail((key,), f"must be a whole number {range_text(key)} (0: no converter steps), got {value!r}")
+            fail((key,), f"must be {range_text(key)}, got {value!r}")
+    if params["rod_m"] >= params["bore_m"]:
+        fail(("rod_m", "bore_m"), f"rod_m must be smaller than bore_m ({params['bore_m']!r} m), "
+                                  f"got {params['rod_m']!r} m")
+    if not params["supply_Pa"] > params["exhaust_Pa"]:
+        fail(("supply_Pa", "exhaust_Pa"), f"supply_Pa must be above exhaust_Pa ({params['exhaust_Pa']!r} Pa), "
+                                          f"got {params['supply_Pa']!r} Pa")
+    if not params["valve_min_V"] < params["valve_null_V"] < params["valve_max_V"]:
+        fail(("valve_null_V", "valve_min_V", "valve_max_V"),
+             f"valve_null_V must lie strictly between valve_min_V and valve_max_V, got "
+             f"{params['valve_min_V']!r} < {params['valve_null_V']!r} < {params['valve_max_V']!r} V")
 
 
 def known_stroke_m(rig_name: str) -> float | None:

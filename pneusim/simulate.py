@@ -21,6 +21,7 @@ from typing import Sequence
 import numpy as np
 
 from . import __version__
+from .errors import PneusimError
 from .experiment import Experiment
 from .model import ActuatorModel, Effect
 from .plant import SimulatedPlant
@@ -83,6 +84,10 @@ def simulate(rig: Rig, experiment: Experiment, effects: Sequence[Effect] = (), *
     record_pressures : bool
         Whether the recording holds ``pressure_a_Pa`` and ``pressure_b_Pa``.
     """
+    if not (isinstance(noise_scale, (int, float)) and noise_scale >= 0 and np.isfinite(noise_scale)):
+        raise PneusimError(f"noise_scale must be a finite number >= 0, got {noise_scale!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise PneusimError(f"seed must be a whole number >= 0, got {seed!r}")
     if experiment.sample_time_s != rig.sample_time_s:
         rig = rig.with_params({"sample_time_s": experiment.sample_time_s})
     plant = SimulatedPlant(rig, effects, backend=backend, rtol=rtol, seed=seed, noise_scale=noise_scale,
@@ -153,6 +158,12 @@ def simulate(rig: Rig, experiment: Experiment, effects: Sequence[Effect] = (), *
     meta["generator"] = f"pneusim {__version__}"
     meta["seed"] = str(seed)
     meta["effects"] = ";".join(e.to_text() for e in plant.model.effects) or "none"
+    # provenance: with these a run can be repeated (pneusim simulate --like reads them back)
+    meta["noise_scale"] = repr(float(noise_scale))
+    overrides = {k: v for k, v in getattr(rig, "overrides", {}).items() if k != "sample_time_s"}
+    meta["rig_overrides"] = ";".join(f"{k}={float(v)!r}" for k, v in sorted(overrides.items())) or "none"
+    if rig.source and not getattr(rig, "is_shipped", True):
+        meta["rig_file"] = str(rig.source)
     meta.update({k: str(v) for k, v in experiment.metadata.items()})
     recording = Recording(
         time_s=np.arange(n) * ts, valve_cmd_V=commands, position_m=positions,
@@ -179,4 +190,5 @@ def rerun_recording(rig: Rig, recording: Recording, effects: Sequence[Effect] = 
         exp = Experiment("open", recording.sample_time_s, recording.valve_cmd_V, None,
                          initial_position_m=float(recording.position_m[0]), initial_pressures_Pa=pressures,
                          description=f"re-run of {recording.source or 'a recording'}")
-    return simulate(rig, exp, effects, record_pressures=recording.has_pressures, **options)
+    options.setdefault("record_pressures", recording.has_pressures)
+    return simulate(rig, exp, effects, **options)

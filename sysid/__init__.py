@@ -5,7 +5,7 @@ MATLAB-style functions (``iddata``, ``arx``, ``armax``, ``oe``, ``bj``,
 wrappers around estimator objects (``ARX(na, nb, nk).fit(data)``).
 Independent of :mod:`pneusim`.
 """
-from .errors import SysidError
+from .errors import SysidError, SysidWarning
 from .data import IDData, iddata, detrend
 from .recording import load_recording
 from .polynomial import IDPoly, idpoly
@@ -21,7 +21,7 @@ from .analysis import ResidResult, resid, aic, fpe, bic, struc, arxstruc, selstr
 from .convert import to_scipy, to_control, from_scipy, from_control
 
 __all__ = [
-    "SysidError",
+    "SysidError", "SysidWarning",
     "IDData", "iddata", "detrend", "load_recording",
     "IDPoly", "idpoly",
     "ARX", "arx",

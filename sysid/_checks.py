@@ -2,6 +2,9 @@
 from __future__ import annotations
 
 import numbers
+from dataclasses import replace
+
+import numpy as np
 
 from .data import IDData
 from .errors import SysidError
@@ -44,3 +47,41 @@ def check_forgetting(lam) -> float:
     if not (0.0 < v <= 1.0):
         raise SysidError(f"forgetting must be a number in (0, 1], got {lam!r}.")
     return v
+
+
+def rms_scale(x, name: str) -> float:
+    """RMS of ``x`` computed without overflow; refuses an all-zero signal (nothing to identify from)."""
+    x = np.asarray(x, dtype=float)
+    peak = float(np.max(np.abs(x)))
+    if not peak > 0.0:
+        raise SysidError(f"{name} must not be all zeros: identification needs a measured output and an exciting input.")
+    rms = peak * float(np.sqrt(np.mean((x / peak) ** 2)))
+    if not 1e-150 < rms < 1e150:
+        raise SysidError(f"{name} has an RMS of {rms:.3g}: its squares (variances, losses) fall outside the "
+                         f"floating-point range; express {name} in units that bring it within 1e-150 .. 1e150.")
+    return rms
+
+
+def scaled(data: IDData) -> tuple[IDData, float, float]:
+    """``data`` with ``y`` and ``u`` divided by their RMS, and the two RMS values ``(sy, su)``.
+
+    Estimators work on signals of order one so that their sums of squares neither
+    overflow (data scaled by 1e200) nor underflow; the models are scaled back.
+    """
+    sy, su = rms_scale(data.y, "y"), rms_scale(data.u, "u")
+    return replace(data, y=data.y / sy, u=data.u / su), sy, su
+
+
+def unscale_poly(model, sy: float, su: float):
+    """Scale an :class:`IDPoly` fitted on ``y/sy, u/su`` back to the data's units (in place; returns it)."""
+    g = sy / su
+    model.B = model.B * g
+    model.noise_variance = model.noise_variance * sy ** 2
+    model.loss = model.loss * sy ** 2
+    if model.covariance is not None:
+        w = np.ones(model.n_parameters)
+        w[model.na:model.na + model.nb] = g
+        model.covariance = model.covariance * np.outer(w, w)
+    if "cost" in model.report:
+        model.report["cost"] = model.report["cost"] * sy ** 2
+    return model

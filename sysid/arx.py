@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._blas import one_blas_thread
-from ._checks import check_data, check_enough_data, check_order, check_orders
+from ._checks import check_data, check_enough_data, check_order, check_orders, scaled, unscale_poly
+from ._diagnose import finish
 from .data import IDData
 from .errors import SysidError
 from .polynomial import IDPoly
@@ -122,6 +123,8 @@ class ARX:
             raise SysidError("na + nb must be at least 1, got na = nb = 0.")
         n = max(na, nk + nb - 1, 0)
         check_enough_data(data.N - n, na + nb, f"ARX[{na} {nb} {nk}]")
+        original = data
+        data, sy, su = scaled(data)
         Phi, target, n = arx_regressors(data.y, data.u, na, nb, nk)
         theta, rss, R11 = _qr_lstsq(Phi, target, what=f"ARX[{na} {nb} {nk}]" if strict else None)
         neff, d = target.size, na + nb
@@ -136,6 +139,9 @@ class ARX:
         model = IDPoly(np.r_[1.0, theta[:na]], B, Ts=data.Ts, nk=nk, nb=nb,
                        noise_variance=lam, covariance=cov, structure="arx",
                        loss=rss / neff, n_samples=neff)
+        unscale_poly(model, sy, su)
+        if strict:
+            finish(model, original, f"ARX[{na} {nb} {nk}] model")
         self.model_ = model
         return model
 

@@ -5,6 +5,15 @@ numerator/denominator of equal length: ``B(q^-1)/A(q^-1) = (B z^n)/(A z^n)``.
 Only the input-output transfer ``G = B/(A F)`` is converted; the noise model
 is dropped.  Models from scipy/control come back as output-error
 :class:`~sysid.polynomial.IDPoly` (``y = B/F u + e``).
+
+Input delays: a discrete model's delay ``nk`` is part of ``B`` (leading zeros)
+and is carried exactly.  A continuous-time :class:`~sysid.IDTF` with an input
+delay cannot be represented by ``scipy.signal.lti`` or
+``control.TransferFunction`` (python-control has no time-delay systems), so
+``to_scipy`` / ``to_control`` refuse it unless ``pade_order=N`` asks for an
+N-th order Padé approximation of ``exp(-s tau)`` (``control.pade``), or
+``discrete=True`` asks for the exact zero-order-hold equivalent at the model's
+sample time with the delay as whole samples.
 """
 from __future__ import annotations
 
@@ -16,10 +25,23 @@ from .polynomial import IDPoly
 __all__ = ["to_scipy", "to_control", "from_scipy", "from_control"]
 
 
-def _z_polys(model):
+def _z_polys(model, pade_order=None, discrete=False):
     from .predict import as_idpoly
-    if hasattr(model, "to_lti_continuous"):
-        return model.to_lti_continuous()
+    if hasattr(model, "to_lti_continuous") and not discrete:
+        num, den, ts = model.to_lti_continuous()
+        tau = float(model.iodelay)
+        if tau > 0:
+            if pade_order is None:
+                raise SysidError(
+                    f"model has an input delay of {tau:g} s, which a delay-free transfer function cannot carry: "
+                    f"pass pade_order=N for an N-th order Pade approximation of exp(-{tau:g} s), or discrete=True "
+                    f"for the exact sampled form (delay as {model.delay_samples} samples of {model.Ts:g} s).")
+            if isinstance(pade_order, bool) or not isinstance(pade_order, (int, np.integer)) or pade_order < 1:
+                raise SysidError(f"pade_order must be an integer >= 1, got {pade_order!r}.")
+            from control import pade
+            pn, pd = pade(tau, int(pade_order))
+            num, den = np.polymul(num, pn), np.polymul(den, pd)
+        return num, den, ts
     m = as_idpoly(model)
     num, den = m.G()
     n = max(num.size, den.size)
@@ -28,19 +50,32 @@ def _z_polys(model):
     return num, den, m.Ts
 
 
-def to_scipy(model):
-    """``scipy.signal.dlti`` (or ``lti`` for continuous-time IDTF) of the input-output transfer."""
+def to_scipy(model, pade_order=None, discrete=False):
+    """``scipy.signal.dlti`` (or ``lti`` for continuous-time IDTF) of the input-output transfer.
+
+    Parameters
+    ----------
+    model : IDPoly, IDSS or IDTF
+    pade_order : int or None
+        For an IDTF with an input delay: order of the Padé approximation of the delay
+        (required then, see the module docstring); ignored otherwise.
+    discrete : bool
+        For an IDTF: return the exact ZOH ``dlti`` at ``model.Ts`` (delay in whole samples).
+    """
     from scipy import signal
-    num, den, ts = _z_polys(model)
+    num, den, ts = _z_polys(model, pade_order, discrete)
     if ts == 0:
         return signal.lti(num, den)
     return signal.dlti(np.trim_zeros(num, "f") if np.any(num) else [0.0], den, dt=ts)
 
 
-def to_control(model):
-    """``control.TransferFunction`` of the input-output transfer (``dt = Ts``, or 0)."""
+def to_control(model, pade_order=None, discrete=False):
+    """``control.TransferFunction`` of the input-output transfer (``dt = Ts``, or 0).
+
+    ``pade_order`` and ``discrete`` as in :func:`to_scipy` (python-control has no delays).
+    """
     import control
-    num, den, ts = _z_polys(model)
+    num, den, ts = _z_polys(model, pade_order, discrete)
     return control.tf(num, den, ts)
 
 

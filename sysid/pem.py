@@ -26,7 +26,8 @@ import numpy as np
 from scipy.signal import lfilter
 
 from ._blas import one_blas_thread
-from ._checks import check_data, check_enough_data, check_order, check_orders
+from ._checks import check_data, check_enough_data, check_order, check_orders, scaled, unscale_poly
+from ._diagnose import finish
 from .arx import _qr_lstsq, arx_regressors
 from .data import IDData
 from .errors import SysidError
@@ -216,6 +217,8 @@ class PEM:
         d = na + nb + nc + nd + nf
         nmax = max(na, nb + nk, nc, nd, nf)
         check_enough_data(data.N - nmax, d, f"{self.structure.upper()} with {d} parameters")
+        original = data
+        data, sy, su = scaled(data)
         if self.init_sys is not None:
             m0 = self.init_sys
             if not isinstance(m0, IDPoly):
@@ -228,7 +231,7 @@ class PEM:
                     r = np.max(np.abs(np.roots(getattr(m0, name))))
                     raise SysidError(f"init_sys must have a stable {name} polynomial (all roots inside the unit "
                                      f"circle), but a root has |z| = {r:.4g}.")
-            m0 = IDPoly(m0.A, m0.B, m0.C, m0.D, m0.F, Ts=data.Ts, nk=nk, nb=nb)
+            m0 = IDPoly(m0.A, m0.B * (su / sy), m0.C, m0.D, m0.F, Ts=data.Ts, nk=nk, nb=nb)
         else:
             m0 = self._initial(data)
         m, J, eps, info = _lm(m0, data.y, data.u, int(self.max_iter), float(self.tol))
@@ -242,6 +245,8 @@ class PEM:
         model = IDPoly(m.A, m.B, m.C, m.D, m.F, Ts=data.Ts, nk=nk, nb=nb, noise_variance=lam,
                        covariance=cov, structure=self.structure, loss=V / N, n_samples=N,
                        report=info)
+        unscale_poly(model, sy, su)
+        finish(model, original, f"{self.structure.upper()} model")
         self.model_ = model
         return model
 

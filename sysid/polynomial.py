@@ -75,6 +75,9 @@ class IDPoly:
         Covariance of the free parameters in the order of :attr:`parameters`.
     structure : str
         ``"arx"``, ``"armax"``, ``"oe"``, ``"bj"`` or ``"poly"`` (informative).
+    warnings : list of str
+        What is wrong with the estimate (unstable, ``B = 0``, non-finite), also issued as
+        :class:`~sysid.SysidWarning` when it was estimated; empty when nothing is.
     """
 
     A: np.ndarray
@@ -91,6 +94,7 @@ class IDPoly:
     loss: float = float("nan")
     n_samples: int = 0
     report: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
 
     def __post_init__(self):
         self.A = _monic(self.A, "A")
@@ -188,17 +192,26 @@ class IDPoly:
         return np.polyval(num[::-1], z1) / np.polyval(den[::-1], z1)
 
     def __repr__(self):
-        def f(p):
-            return np.array2string(p, precision=5, separator=", ")
-        s = [f"IDPoly({self.structure}, Ts={self.Ts:g}, nk={self.nk}"]
-        s.append(f"  A = {f(self.A)}")
-        s.append(f"  B = {f(self.B)}")
-        for n in "CDF":
+        """MATLAB-style display: the equation, each polynomial in ``z^-1``, sample time, status."""
+        from ._display import poly_text, status_block
+        eq = {"arx": "A(z)y(t) = B(z)u(t) + e(t)", "armax": "A(z)y(t) = B(z)u(t) + C(z)e(t)",
+              "oe": "y(t) = [B(z)/F(z)]u(t) + e(t)", "bj": "y(t) = [B(z)/F(z)]u(t) + [C(z)/D(z)]e(t)"}
+        title = {"arx": "ARX", "armax": "ARMAX", "oe": "OE", "bj": "BJ"}.get(self.structure, "polynomial")
+        lines = [f"Discrete-time {title} model: " +
+                 eq.get(self.structure, "A(z)y(t) = [B(z)/F(z)]u(t) + [C(z)/D(z)]e(t)")]
+        for n in "ABCDF":
             p = getattr(self, n)
-            if p.size > 1:
-                s.append(f"  {n} = {f(p)}")
-        s.append(f"  noise_variance = {self.noise_variance:.4g})")
-        return "\n".join(s)
+            if n == "B" or p.size > 1 or (n == "A" and self.structure in ("arx", "armax", "poly")):
+                lines.append(poly_text(f"{n}(z)", p))
+        lines += ["", f"Sample time: {self.Ts:g} seconds", "",
+                  f"Parameterization: orders na={self.na} nb={self.nb} nc={self.nc} nd={self.nd} nf={self.nf} "
+                  f"nk={self.nk}; {self.n_parameters} free coefficients", ""]
+        lines += status_block(self, self.structure.upper())
+        if self.noise_variance:
+            lines.append(f"Noise variance: {self.noise_variance:.4g}")
+        return "\n".join(lines)
+
+    __str__ = __repr__
 
 
 def _roots_qinv(p: np.ndarray) -> np.ndarray:

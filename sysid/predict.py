@@ -4,10 +4,17 @@ All models are evaluated through their polynomial form
 ``A y = B/F u + C/D e`` (state-space and continuous-time models convert
 themselves with ``to_idpoly()``).
 
-Initial conditions: ``"zero"`` (default) assumes zero input, output and
-noise before the first sample; ``"estimate"`` (simulation only) chooses the
-initial filter state that best fits the measured output in least squares,
-like MATLAB's ``InitialCondition='estimate'``.
+Initial conditions: ``"zero"`` assumes zero input, output and noise before
+the first sample (the default of :func:`simulate` and :func:`predict`, as
+MATLAB's ``sim``); ``"estimate"`` (simulation only) chooses the initial
+filter state that best fits the measured output in least squares, like
+MATLAB's ``InitialCondition='e'``, which is :func:`compare`'s default (as in
+MATLAB).
+
+A discrete model is evaluated only on data with its own sample time; a
+continuous-time :class:`~sysid.IDTF` is discretised (zero-order hold) at the
+data's sample time.  A simulation that overflows (unstable model) raises
+:class:`~sysid.SysidError` instead of returning inf.
 """
 from __future__ import annotations
 
@@ -24,14 +31,33 @@ from .polynomial import IDPoly
 __all__ = ["predict", "simulate", "compare", "fit_percent"]
 
 
-def as_idpoly(model) -> IDPoly:
-    """Return the polynomial form of ``model`` (internal)."""
+def as_idpoly(model, Ts=None) -> IDPoly:
+    """Return the polynomial form of ``model`` (internal).
+
+    With ``Ts`` (the data's sample time, s): a discrete model sampled otherwise is
+    refused; a continuous-time model is discretised at ``Ts``.
+    """
+    if Ts is not None and hasattr(model, "to_lti_continuous"):
+        return model.to_idpoly(Ts=Ts)
     if isinstance(model, IDPoly):
-        return model
-    conv = getattr(model, "to_idpoly", None)
-    if conv is None:
-        raise SysidError(f"model must be a sysid model (IDPoly, IDSS or IDTF), got {type(model).__name__}.")
-    return conv()
+        m = model
+    else:
+        conv = getattr(model, "to_idpoly", None)
+        if conv is None:
+            raise SysidError(f"model must be a sysid model (IDPoly, IDSS or IDTF), got {type(model).__name__}.")
+        m = conv()
+    if Ts is not None and not math.isclose(float(m.Ts), float(Ts), rel_tol=1e-9):
+        raise SysidError(f"model is sampled at Ts = {m.Ts:g} s but the data at Ts = {Ts:g} s: resample the data "
+                         f"or estimate the model at the data's sample time.")
+    return m
+
+
+def _check_finite(yhat, m: IDPoly, what: str):
+    if not np.all(np.isfinite(yhat)):
+        poles = m.poles()
+        r = float(np.max(np.abs(poles))) if poles.size else float("nan")
+        raise SysidError(f"model is unstable (a pole has |z| = {r:.6g} > 1): its {what} overflows over "
+                         f"{yhat.size} samples; use k-step prediction (k=1) or a stable model.")
 
 
 def _pad(p, n):
@@ -67,10 +93,11 @@ def simulate(model, data_or_u, initial: str = "zero") -> np.ndarray:
     ndarray, shape (N,)
         Simulated output.
     """
-    m = as_idpoly(model)
     if isinstance(data_or_u, IDData):
+        m = as_idpoly(model, data_or_u.Ts)
         u = data_or_u.u
     else:
+        m = as_idpoly(model)
         try:
             u = np.asarray(data_or_u, dtype=float)
         except (TypeError, ValueError):
@@ -81,18 +108,24 @@ def simulate(model, data_or_u, initial: str = "zero") -> np.ndarray:
         if not np.all(np.isfinite(u)):
             i = int(np.flatnonzero(~np.isfinite(u))[0])
             raise SysidError(f"u must be finite, but sample {i} is {u[i]}.")
+    if initial not in ("zero", "estimate"):
+        raise SysidError(f"initial must be 'zero' or 'estimate', got {initial!r}.")
+    if initial == "estimate" and not isinstance(data_or_u, IDData):
+        raise SysidError("initial='estimate' needs an IDData (the measured output is used).")
     num, den = m.G()
-    ys = lfilter(num, den, u)
+    with np.errstate(over="ignore", invalid="ignore"):
+        ys = lfilter(num, den, u)
+    _check_finite(ys, m, "simulation")
     if initial == "zero":
         return ys
-    if initial != "estimate":
-        raise SysidError(f"initial must be 'zero' or 'estimate', got {initial!r}.")
-    if not isinstance(data_or_u, IDData):
-        raise SysidError("initial='estimate' needs an IDData (the measured output is used).")
-    basis = _free_response_basis(num, den, u.size)
+    with np.errstate(over="ignore", invalid="ignore"):
+        basis = _free_response_basis(num, den, u.size)
+    _check_finite(basis, m, "free response")
     if basis.shape[1]:
-        x0, *_ = np.linalg.lstsq(basis, data_or_u.y - ys, rcond=None)
-        ys = ys + basis @ x0
+        norms = np.sqrt(np.einsum("ij,ij->j", basis, basis))
+        norms[norms == 0] = 1.0
+        x0, *_ = np.linalg.lstsq(basis / norms, data_or_u.y - ys, rcond=None)
+        ys = ys + (basis / norms) @ x0
     return ys
 
 
@@ -125,7 +158,7 @@ def predict(model, data: IDData, k=1) -> np.ndarray:
     if not ok:
         raise SysidError(f"k must be an integer >= 1 or math.inf, got {k!r}.")
     k = int(k)
-    m = as_idpoly(model)
+    m = as_idpoly(model, data.Ts)
     AD = np.convolve(m.A, m.D)
     delta = np.zeros(k)
     delta[0] = 1.0
@@ -136,16 +169,27 @@ def predict(model, data: IDData, k=1) -> np.ndarray:
     n = max(hAD.size, m.C.size)
     num_y = _pad(m.C, n) - _pad(hAD, n)
     num_y[:k] = 0.0  # exact zeros by construction; remove round-off
-    return lfilter(num_u, den, data.u) + lfilter(num_y, m.C, data.y)
+    with np.errstate(over="ignore", invalid="ignore"):
+        yhat = lfilter(num_u, den, data.u) + lfilter(num_y, m.C, data.y)
+    _check_finite(yhat, m, f"{k}-step prediction")
+    return yhat
 
 
 def fit_percent(y, yhat) -> float:
-    """MATLAB fit: ``100 (1 - ||y - yhat|| / ||y - mean(y)||)`` in percent."""
+    """MATLAB fit: ``100 (1 - ||y - yhat|| / ||y - mean(y)||)`` in percent.
+
+    Undefined for a constant ``y`` (the denominator is zero; MATLAB returns -Inf
+    or NaN): refused with :class:`SysidError`.
+    """
     y = np.asarray(y, dtype=float)
-    return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / np.linalg.norm(y - y.mean())))
+    den = float(np.linalg.norm(y - y.mean()))
+    if not den > 0.0:
+        raise SysidError(f"y is constant ({y.size} samples equal to {y[0]:.6g}): the fit % "
+                         f"100 (1 - |y - yhat| / |y - mean(y)|) is undefined; validate on data that vary.")
+    return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / den))
 
 
-def compare(data: IDData, model, k=math.inf, initial: str = "zero") -> float:
+def compare(data: IDData, model, k=math.inf, initial: str = "estimate") -> float:
     """MATLAB ``compare``: fit in percent of the model output to ``data.y``.
 
     Parameters
@@ -155,16 +199,28 @@ def compare(data: IDData, model, k=math.inf, initial: str = "zero") -> float:
     model : IDPoly, IDSS or IDTF
     k : int or math.inf
         ``math.inf`` (default): simulation; integer: k-step prediction.
-    initial : {"zero", "estimate"}
-        Initial conditions of the simulation (zero by default; MATLAB's
-        default is to estimate them, pass ``"estimate"`` for that).
+    initial : {"estimate", "zero"}
+        Initial conditions of the simulation: estimated by least squares
+        (default, MATLAB's ``compare`` default ``'e'``) or zero.  k-step
+        predictions start from zero (their transient lasts about k samples).
 
     Returns
     -------
     float
         Fit in percent (100 is perfect, can be negative).
+
+    Raises
+    ------
+    SysidError
+        When the model's sample time differs from the data's, ``data.y`` is
+        constant (fit undefined) or the simulation of an unstable model overflows.
     """
     data = check_data(data)
+    if initial not in ("zero", "estimate"):
+        raise SysidError(f"initial must be 'zero' or 'estimate', got {initial!r}.")
+    if not np.ptp(data.y) > 0:
+        raise SysidError(f"data.y is constant ({data.N} samples equal to {data.y[0]:.6g}): the fit % "
+                         f"100 (1 - |y - yhat| / |y - mean(y)|) is undefined; validate on data that vary.")
     if k == math.inf:
         yhat = simulate(model, data, initial=initial)
     else:

@@ -27,6 +27,7 @@ array ``M = [Q | theta]`` and updated with a single rank-one ``dger`` call;
 """
 from __future__ import annotations
 
+import numbers
 from collections import deque
 
 import numpy as np
@@ -117,7 +118,11 @@ class RecursiveARX:
         u : float
             Input at time t (used now if ``nk = 0``, otherwise delayed).
         """
-        if y - y != 0.0 or u - u != 0.0:  # NaN or +-inf, checked before any state changes
+        try:
+            bad = y - y != 0.0 or u - u != 0.0  # NaN or +-inf, checked before any state changes
+        except (TypeError, ValueError):        # not a number (str, None, a vector): say which
+            raise SysidError(_not_a_sample(y, u, self.n_updates)) from None
+        if bad:
             raise SysidError(f"update needs finite y and u, got y = {y!r}, u = {u!r} "
                              f"(sample {self.n_updates}); the estimate is unchanged.")
         psi = self._psi
@@ -223,6 +228,16 @@ class RecursiveARX:
         return IDPoly(np.r_[1.0, th[:na]], B, np.r_[1.0, th[na + nb:]], Ts=self.Ts, nk=nk, nb=nb,
                       structure="armax" if nc else "arx", noise_variance=sigma2 if ok else 0.0,
                       covariance=self.covariance if ok else None, n_samples=self.n_updates)
+
+
+def _not_a_sample(y, u, n: int) -> str:
+    for name, v in (("y", y), ("u", u)):
+        if isinstance(v, (bool, np.bool_)) or not (isinstance(v, (numbers.Real, np.number)) or
+                                                   (isinstance(v, np.ndarray) and v.size == 1
+                                                    and np.issubdtype(v.dtype, np.number))):
+            return (f"update: {name} must be one real number (the sample at time t), got {v!r} "
+                    f"({type(v).__name__}) at sample {n}; the estimate is unchanged.")
+    return f"update needs two real numbers y and u, got y = {y!r}, u = {u!r} at sample {n}; the estimate is unchanged."
 
 
 RecursiveARMAX = RecursiveARX

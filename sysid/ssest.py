@@ -10,8 +10,12 @@ ARMAX-equivalent coefficients.
 """
 from __future__ import annotations
 
+import warnings as _warnings
+
 from ._blas import one_blas_thread
 from ._checks import check_data
+from ._diagnose import finish
+from .errors import SysidWarning
 from .data import IDData
 from .pem import ARMAX
 from .polynomial import is_stable_poly
@@ -49,6 +53,11 @@ class SSEst:
     def fit(self, data: IDData) -> IDSS:
         """Estimate; sets ``model_`` (and the start ``start_``) and returns an :class:`IDSS`."""
         data = check_data(data)
+        with _warnings.catch_warnings():  # the start and the ARMAX step are judged once, at the end
+            _warnings.simplefilter("ignore", SysidWarning)
+            return self._fit(data)
+
+    def _fit(self, data):
         start = N4SID(self.nx, feedthrough=self.feedthrough, **self.n4sid_options).fit(data)
         p0 = start.to_idpoly()
         nx = start.nx
@@ -61,6 +70,9 @@ class SSEst:
                                 singular_values=start.singular_values, report=dict(p.report))
         self.start_ = start
         self.model_ = model
+        with _warnings.catch_warnings():
+            _warnings.simplefilter("default", SysidWarning)
+            finish(model, data, f"ssest model (nx = {nx})")
         return model
 
 

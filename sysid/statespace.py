@@ -45,6 +45,12 @@ class IDSS:
         Mean squared one-step prediction error on the estimation data.
     n_samples : int
         Number of estimation samples.
+    warnings : list of str
+        What is wrong with the estimate (unstable, ``B = 0``, non-finite), also issued as
+        :class:`~sysid.SysidWarning` when it was estimated; empty when nothing is.
+    report : dict
+        Estimation details: ``fit_percent`` (fit to the estimation data, MATLAB's display),
+        ``focus``, ``method``, ``x0`` (estimated initial state, n4sid) ...
     """
 
     A: np.ndarray
@@ -59,6 +65,7 @@ class IDSS:
     covariance: np.ndarray | None = None
     loss: float = float("nan")
     n_samples: int = 0
+    warnings: list = field(default_factory=list)
 
     @property
     def nx(self) -> int:
@@ -91,6 +98,29 @@ class IDSS:
     def std(self) -> np.ndarray | None:
         """Standard deviations of :attr:`parameters` (None when no covariance)."""
         return std_of(self.covariance)
+
+    def __repr__(self) -> str:
+        """MATLAB-style display: equations, matrices (large ones summarised), sample time, status."""
+        from ._display import matrix_block, status_block
+        lines = ["Discrete-time identified state-space model:",
+                 "    x(t+Ts) = A x(t) + B u(t) + K e(t)",
+                 "       y(t) = C x(t) + D u(t) + e(t)", ""]
+        for name, M, r, c in (("A", self.A, "x", "x"), ("B", self.B, "x", "u"), ("C", self.C, "y", "x"),
+                              ("D", self.D, "y", "u"), ("K", self.K, "x", "y")):
+            lines += matrix_block(name, M, r, c)
+        lines += ["", f"Sample time: {self.Ts:g} seconds", "", "Parameterization:",
+                  f"   FREE form (all coefficients in A, B, C, K free), {self.nx} states.",
+                  f"   Feedthrough: {'yes' if np.any(self.D) else 'none'}",
+                  f"   Number of basis-independent parameters (ARMAX form): {self.n_parameters}", ""]
+        rep = self.report or {}
+        how = "N4SID" if rep.get("method") == "n4sid" else ("SSEST" if "iterations" in rep else "a sysid estimator")
+        if rep.get("weighting"):
+            how += f" (weighting {rep['weighting'].upper()}, horizon {rep.get('horizon', '?')}"
+            how += ", stability enforced)" if rep.get("stability_enforced") else ")"
+        lines += status_block(self, how)
+        return "\n".join(lines)
+
+    __str__ = __repr__
 
     def poles(self) -> np.ndarray:
         """Eigenvalues of ``A`` (z-plane)."""

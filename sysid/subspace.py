@@ -23,12 +23,13 @@ weighting):
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import lfilter
 
 from ._blas import one_blas_thread
-from ._checks import check_data, check_order
+from ._checks import check_data, check_order, rms_scale
+from ._diagnose import finish, growth_over, problems
 from .data import IDData
 from .errors import SysidError
+from .polynomial import is_stable_poly
 from .statespace import IDSS
 
 __all__ = ["N4SID", "n4sid"]
@@ -53,32 +54,124 @@ class N4SID:
     max_order : int
         Largest order considered when ``nx`` is None.
     method : {"shift", "states"}
-        ``A, C`` from the shift invariance of the observability matrix
-        (default, MOESP-like) or by regression on the estimated states.
+        MOESP weighting only: ``A, C`` from the shift invariance of the observability
+        matrix (default) or by regression on the estimated states.
+    weighting : {"auto", "moesp", "ssarx"}
+        MATLAB's ``N4Weight``.  ``"moesp"``: oblique projection along future inputs
+        (Verhaegen), consistent for open-loop data only.  ``"ssarx"``: the future
+        outputs are first corrected by a high-order ARX predictor (Jansson 2003;
+        predictor-based, as PBSID), so feedback from the output to the input does not
+        bias the estimate (closed-loop data).  ``"auto"`` (default) estimates both and
+        keeps the one with the smaller one-step prediction error on the estimation data,
+        preferring a model that is neither unstable nor degenerate.
+    enforce_stability : bool or None
+        MATLAB's ``EnforceStability``.  ``True``: eigenvalues of ``A`` outside the unit
+        circle are reflected to ``1/conj(z)``.  ``False``: never (MATLAB's default).
+        ``None`` (default): an unstable estimate and its reflected twin both compete
+        (below), so ``A`` is stable unless the unstable model simulates the estimation
+        data better, i.e. unless the data say it is unstable.
+
+    With ``weighting="auto"`` and no ``horizon`` given, the horizons ``i`` and ``2 i``
+    (at most 40) are tried as well.  After ``A, C`` (and ``K``) of each candidate, ``B``,
+    ``D`` and the initial state ``x0`` are estimated by linear least squares on the
+    simulated output (columns from FFT convolutions of ``C A^t`` with ``u``, scaled to
+    unit norm, QR-based ``lstsq``); when ``A`` is so unstable that the simulation would
+    grow by more than ``1e6`` over the record they are estimated through the (stable)
+    one-step predictor instead.  The candidate with the smallest simulation error on the
+    estimation data is returned (MATLAB's ``Focus='simulation'``); ``report`` lists
+    them all.  An unstable or degenerate result is reported in ``model.warnings`` and
+    as :class:`sysid.SysidWarning`.  The signals are scaled to unit RMS inside, so
+    the result does not depend on their units.
     """
 
-    def __init__(self, nx=None, horizon=None, feedthrough=False, max_order=10, method="shift"):
+    def __init__(self, nx=None, horizon=None, feedthrough=False, max_order=10, method="shift",
+                 weighting="auto", enforce_stability=None):
         self.method = method
         self.nx = nx
         self.horizon = horizon
         self.feedthrough = feedthrough
         self.max_order = max_order
+        self.weighting = weighting
+        self.enforce_stability = enforce_stability
 
     @one_blas_thread
     def fit(self, data: IDData) -> IDSS:
         """Estimate the model; sets ``model_`` and returns it."""
         data = check_data(data)
-        y, u, N = data.y, data.u, data.N
+        N = data.N
         nmax = check_order(self.max_order, "max_order", 1)
         if self.nx is not None:
             nx = check_order(self.nx, "nx", 1)
             nmax = nx
+        else:
+            nx = None
         i = self.horizon if self.horizon is not None else max(2 * nmax, 10)
         i = check_order(i, "horizon", 1)
         j = N - 2 * i + 1
         if i <= nmax or j < 4 * i + 10:
             raise SysidError(f"orders are too high for the data: n4sid with nx = {nmax} needs horizon > nx and "
                              f"at least {2 * i + 4 * i + 9} samples, got horizon {i} and {N} samples.")
+        if self.method not in ("shift", "states"):
+            raise SysidError(f"method must be 'shift' or 'states', got {self.method!r}.")
+        weighting = str(self.weighting).lower() if isinstance(self.weighting, str) else self.weighting
+        if weighting not in ("auto", "moesp", "ssarx"):
+            raise SysidError(f"weighting must be 'auto', 'moesp' or 'ssarx', got {self.weighting!r}.")
+        if self.enforce_stability is not None and not isinstance(self.enforce_stability, (bool, np.bool_)):
+            raise SysidError(f"enforce_stability must be True, False or None, got {self.enforce_stability!r}.")
+        # work on signals of unit size: the result does not depend on the units (1e-3 m or 1e200)
+        sy, su = rms_scale(data.y, "y"), rms_scale(data.u, "u")
+        y, u = data.y / sy, data.u / su
+        names = ["moesp", "ssarx"] if weighting == "auto" else [weighting]
+        if self.horizon is None and weighting == "auto":
+            i_max = (N - 9) // 6            # keeps j >= 4 i + 10
+            horizons = sorted({i, max(i, min(2 * i, 40, i_max))})
+        else:
+            horizons = [i]
+        enforce = self.enforce_stability
+        cands = []
+        for name in names:
+            for h in horizons:
+                try:
+                    A, C, K, extra = (self._moesp(y, u, nx, nmax, h) if name == "moesp"
+                                      else self._ssarx(y, u, nx, nmax, h))
+                except (np.linalg.LinAlgError, SysidError):
+                    if len(names) * len(horizons) == 1:
+                        raise
+                    continue
+                extra["report"]["horizon"] = h
+                unstable = bool(np.any(np.abs(np.linalg.eigvals(A)) > 1.0))
+                variants = [True] if enforce is True else [False] if (enforce is False or not unstable) \
+                    else [False, True]
+                for reflect in variants:
+                    cands.append(self._complete(name, A, C, K, y, u, extra, reflect))
+        if not cands:
+            raise SysidError("the data cannot support n4sid at this order: every weighting failed "
+                             "(input not persistently exciting?).")
+        # MATLAB's 'simulation' focus: the candidate that simulates the estimation data best
+        # (estimated x0); a non-finite or degenerate one only if nothing else is left
+        best = min(cands, key=lambda c: (c["degenerate"], c["sim_rss"], c["loss"]))
+        A, B, Cm, D, K = best["A"], best["B"] * (sy / su), best["C"], best["D"] * (sy / su), best["K"]
+        report = dict(method="n4sid", weighting=best["weighting"], stability_enforced=best["reflected"],
+                      x0=best["x0"] * sy,
+                      candidates=[dict(weighting=c["weighting"], horizon=c["extra_report"]["horizon"],
+                                       stability_enforced=c["reflected"],
+                                       simulation_fit_percent=c["sim_fit"]) for c in cands])
+        report.update(best["extra_report"])
+        model = IDSS(A, B, Cm, D, K, Ts=data.Ts, noise_variance=best["Svv"] * sy ** 2,
+                     singular_values=best["s"], report=report)
+        model.covariance, model.loss = _pem_covariance(model, data.y, data.u)
+        if not np.isfinite(model.loss):
+            model.loss = best["loss"] * sy ** 2
+        model.n_samples = N
+        finish(model, data, f"n4sid model (nx = {A.shape[0]})", focus="simulation", fit=best["sim_fit"])
+        self.model_ = model
+        return model
+
+    # ---------------------------------------------------------------- weightings
+    def _moesp(self, y, u, nx, nmax, i):
+        """MOESP: oblique projection of future outputs on the past along future inputs."""
+        N = y.size
+        j = N - 2 * i + 1
         Up, Uf = _hankel(u, 0, i, j), _hankel(u, i, i, j)
         Yp, Yf = _hankel(y, 0, i, j), _hankel(y, i, i, j)
         Wp = np.vstack([Up, Yp])
@@ -91,10 +184,7 @@ class N4SID:
         Lw = L32 @ np.linalg.pinv(L22)
         Us, s, _ = np.linalg.svd(L32)
         s = s / np.sqrt(j)
-        if self.nx is None:
-            k = min(nmax, s.size - 1)
-            gaps = np.log(s[:k] + 1e-300) - np.log(s[1:k + 1] + 1e-300)
-            nx = int(np.argmax(gaps)) + 1
+        nx = _order(s, nx, nmax)
         U1 = Us[:, :nx]
         sq = np.sqrt(s[:nx])
         Gam = U1 * sq
@@ -104,64 +194,171 @@ class N4SID:
         uc = u[i:i + j - 1]
         yc = y[i:i + j - 1]
         if self.method == "shift":
-            # A and C from the shift invariance of the extended observability matrix
             A = np.linalg.lstsq(Gam[:-1], Gam[1:], rcond=None)[0]
             Cm = Gam[:1]
-        elif self.method == "states":
-            # A and C by least squares on consecutive states
+        else:
             reg = np.vstack([Xc, uc])
             th = np.linalg.lstsq(reg.T, np.vstack([Xn, yc[None, :]]).T, rcond=None)[0].T
             A, Cm = th[:nx, :nx], th[nx:, :nx]
-        else:
-            raise SysidError(f"method must be 'shift' or 'states', got {self.method!r}.")
         # input terms of the state and output equations given A, C; residuals -> K
         Rx = Xn - A @ Xc
         Ry = yc - (Cm @ Xc).ravel()
         bs = np.linalg.lstsq(uc[:, None], Rx.T, rcond=None)[0].T
         w = Rx - bs @ uc[None, :]
-        if self.feedthrough:
-            ds = float(uc @ Ry) / float(uc @ uc)
-            v = Ry - ds * uc
-        else:
-            v = Ry
+        v = Ry - (float(uc @ Ry) / float(uc @ uc)) * uc if self.feedthrough else Ry
         Svv = float(v @ v) / v.size
         K = (w @ v / v.size / Svv).reshape(nx, 1)
+        Bs = bs.reshape(nx, 1)
+        Ds = float(uc @ Ry) / float(uc @ uc) if self.feedthrough else 0.0
+        return A, Cm, K, dict(s=s, Svv=Svv, B=Bs, D=np.array([[Ds]]), report=dict(gamma=Gam))
+
+    def _ssarx(self, y, u, nx, nmax, i):
+        """ARX-predictor-based weighting (SSARX / PBSID): consistent with feedback in the data.
+
+        A high-order ARX model ``y(t) = sum_k Xi_k z(t-k) + e(t)`` with ``z = [u; y]`` and
+        ``k = 1..p`` estimates the Markov parameters ``Xi_k = [C Ab^(k-1) Bb, C Ab^(k-1) K]``
+        of the one-step predictor (``Ab = A - K C``) from past data only, which stays
+        unbiased in closed loop.  Row ``j`` of ``sum_{k>j} Xi_k z(t+j-k)`` is
+        ``C Ab^j x(t)``; its SVD gives the state sequence, then ``C, D`` and ``A, B, K``
+        follow by least squares on the states (van der Veen et al. 2013, PBSIDopt).
+        """
+        p = f = i
+        N = y.size
+        T = N - p
+        Z = np.empty((T, 2 * p))
+        for k in range(1, p + 1):
+            Z[:, 2 * k - 2] = u[p - k:N - k]
+            Z[:, 2 * k - 1] = y[p - k:N - k]
+        reg = np.column_stack([Z, u[p:]]) if self.feedthrough else Z
+        th = np.linalg.lstsq(reg, y[p:], rcond=None)[0]
+        Xi = th[:2 * p]
+        M = np.empty((f, T))
+        for jj in range(f):
+            M[jj] = Z[:, :2 * (p - jj)] @ Xi[2 * jj:]
+        Us, s, Vt = np.linalg.svd(M, full_matrices=False)
+        s = s / np.sqrt(T)
+        nx = _order(s, nx, nmax)
+        X = np.sqrt(s[:nx])[:, None] * Vt[:nx] * np.sqrt(T)   # states x(t), t = p .. N-1
+        yt, ut = y[p:], u[p:]
+        reg1 = np.column_stack([X.T, ut]) if self.feedthrough else X.T
+        th1 = np.linalg.lstsq(reg1, yt, rcond=None)[0]
+        Cm = th1[:nx].reshape(1, nx)
+        e = yt - reg1 @ th1
+        reg2 = np.column_stack([X[:, :-1].T, ut[:-1], e[:-1]])
+        th2 = np.linalg.lstsq(reg2, X[:, 1:].T, rcond=None)[0].T
+        A, Bs, K = th2[:, :nx], th2[:, nx:nx + 1], th2[:, nx + 1:nx + 2]
+        Ds = np.array([[th1[nx] if self.feedthrough else 0.0]])
+        Svv = float(e @ e) / e.size
+        return A, Cm, K, dict(s=s, Svv=Svv, B=Bs, D=Ds, report=dict(arx_order=p))
+
+    # --------------------------------------------------------------- completion
+    def _complete(self, name, A, Cm, K, y, u, extra, reflect):
+        """Stability enforcement, B, D, x0 by least squares, K check; one candidate model (scaled units)."""
+        N = y.size
+        nx = A.shape[0]
+        if reflect:
+            A = _reflect_unstable(A)
         if np.any(np.abs(np.linalg.eigvals(A - K @ Cm)) >= 1.0):
             K = np.zeros((nx, 1))  # keep the predictor stable; fall back to output error
-        # B, D, x0 by least squares on the simulated output, given A and C
-        B, D = self._input_matrices(A, Cm, y, u)
-        model = IDSS(A, B, Cm, D, K, Ts=data.Ts, noise_variance=Svv, singular_values=s,
-                     report=dict(horizon=i, gamma=Gam))
-        model.covariance, model.loss = _pem_covariance(model, y, u)
-        model.n_samples = N
-        self.model_ = model
-        return model
+        bdx = _input_matrices(A, Cm, K, y, u, self.feedthrough)
+        if bdx is None:  # A unstable and no stable predictor: keep the regression's B, D
+            B, D, x0, sim_rss = extra["B"], extra["D"], np.zeros(nx), float("inf")
+        else:
+            B, D, x0, sim_rss = bdx
+        model = IDSS(A, B, Cm, D, K, Ts=1.0)
+        p = model.to_idpoly()
+        from .pem import _residual
+        with np.errstate(all="ignore"):
+            eps = _residual(p, y, u)[0] if is_stable_poly(p.C) else np.full(1, np.inf)
+        loss = float(eps @ eps) / N if np.all(np.isfinite(eps)) else float("inf")
+        degenerate = any("B = 0" in m or "non-finite" in m for m in problems(model, y, u, "model"))
+        ny = float(np.linalg.norm(y - y.mean()))
+        sim_fit = 100.0 * (1.0 - np.sqrt(sim_rss) / ny) if np.isfinite(sim_rss) else float("-inf")
+        return dict(weighting=name, A=A, B=B, C=Cm, D=D, K=K, x0=x0, s=extra["s"], Svv=extra["Svv"],
+                    loss=loss, sim_rss=sim_rss, sim_fit=sim_fit, degenerate=degenerate, reflected=bool(reflect),
+                    extra_report=extra["report"])
 
-    def _input_matrices(self, A, C, y, u):
-        n = A.shape[0]
-        N = y.size
-        # y_sim(t) = sum_k B_k * [C (qI-A)^-1 e_k u](t) + D u(t) + C A^t x0
-        cols = []
-        eye = np.eye(n)
-        # transfer function C (zI-A)^-1 e_k in q^-1 form: num_k / det
-        den = np.poly(A)
-        for k in range(n):
-            num = _ss_num(A, eye[:, [k]], C)
-            cols.append(lfilter(num, den, u))
-        free = np.empty((N, n))
-        x = np.eye(n)
-        # free response C A^t (cheap: n x n per step only for the first few hundred samples)
-        for t in range(N):
-            free[t] = C @ x
-            x = A @ x
-            if not np.any(np.abs(x) > 1e-14) and t > 10:
-                free[t + 1:] = 0.0
-                break
-        Xr = np.column_stack(cols + ([u] if self.feedthrough else []) + [free])
-        th, *_ = np.linalg.lstsq(Xr, y, rcond=None)
-        B = th[:n].reshape(n, 1)
-        D = np.array([[th[n] if self.feedthrough else 0.0]])
-        return B, D
+
+def _order(s: np.ndarray, nx, nmax: int) -> int:
+    if nx is not None:
+        return nx
+    k = min(nmax, s.size - 1)
+    gaps = np.log(s[:k] + 1e-300) - np.log(s[1:k + 1] + 1e-300)
+    return int(np.argmax(gaps)) + 1
+
+
+def _reflect_unstable(A: np.ndarray) -> np.ndarray:
+    """``A`` with its eigenvalues ``|z| > 1`` reflected to ``1/conj(z)`` (MATLAB EnforceStability)."""
+    lam, V = np.linalg.eig(A)
+    out = np.abs(lam) > 1.0
+    if not np.any(out):
+        return A
+    lam = lam.copy()
+    lam[out] = 1.0 / np.conj(lam[out])
+    return np.real(V @ np.diag(lam) @ np.linalg.inv(V))
+
+
+SIMULATION_GROWTH_LIMIT = 1e6
+"""Largest growth ``max|eig(A)|^N`` over the record for which B, D, x0 are fitted through the simulation."""
+
+
+def _impulse_rows(F: np.ndarray, C: np.ndarray, N: int) -> np.ndarray:
+    """``R[t] = C F^t``, shape (N, n); stops (zeros) once the rows have decayed below 1e-17 of their peak."""
+    n = F.shape[0]
+    R = np.zeros((N, n))
+    r = C.ravel().astype(float).copy()
+    peak = float(np.max(np.abs(r))) or 1.0
+    for t in range(N):
+        R[t] = r
+        m = float(np.max(np.abs(r)))
+        peak = max(peak, m)
+        if m < 1e-17 * peak:
+            break
+        r = r @ F
+    return R
+
+
+def _input_matrices(A, C, K, y, u, feedthrough):
+    """``B, D, x0`` by linear least squares, given ``A, C`` (and ``K``).
+
+    Simulation form (``max|eig A|^N <= 1e6``)::
+
+        y(t) = sum_j b_j [sum_{k<t} C A^(t-1-k) e_j u(k)] + D u(t) + C A^t x0
+
+    otherwise the one-step predictor form with ``F = A - K C`` (stable) and
+    ``Bb = B - K D``, whose output also carries ``sum_k C F^(t-1-k) K y(k)``.
+    Columns come from FFT convolutions of the rows ``C F^t`` with ``u`` and are
+    scaled to unit norm before ``lstsq``.  Returns ``(B, D, x0, rss)`` with ``rss`` the
+    simulation residual sum of squares (inf in predictor form), or None when neither
+    form is bounded.
+    """
+    from scipy.signal import fftconvolve
+    n = A.shape[0]
+    N = y.size
+    r = float(np.max(np.abs(np.linalg.eigvals(A))))
+    simulate = growth_over(r, N) <= SIMULATION_GROWTH_LIMIT
+    F = A if simulate else A - K @ C
+    if not simulate and growth_over(float(np.max(np.abs(np.linalg.eigvals(F)))), N) > 1.0 + 1e-9:
+        return None
+    R = _impulse_rows(F, C, N)
+    cols = np.zeros((N, n))
+    cols[1:] = fftconvolve(R, u[:, None], axes=0)[:N - 1]
+    target = y.copy()
+    if not simulate:
+        g = R @ K[:, 0]
+        target[1:] -= fftconvolve(g, y)[:N - 1]
+    X = np.column_stack([cols] + ([u] if feedthrough else []) + [R])
+    norms = np.sqrt(np.einsum("ij,ij->j", X, X))
+    norms[norms == 0] = 1.0
+    th = np.linalg.lstsq(X / norms, target, rcond=None)[0] / norms
+    B = th[:n].reshape(n, 1)
+    D = np.array([[th[n] if feedthrough else 0.0]])
+    x0 = th[n + (1 if feedthrough else 0):]
+    res = target - X @ th
+    sim_rss = float(res @ res) if simulate else float("inf")
+    if not simulate:
+        B = B + K * D[0, 0]
+    return B, D, x0, sim_rss
 
 
 def _pem_covariance(model: IDSS, y, u):
@@ -180,12 +377,6 @@ def _pem_covariance(model: IDSS, y, u):
     return cov, V / y.size
 
 
-def _ss_num(A, B, C):
-    from scipy.signal import ss2tf
-    num, _ = ss2tf(A, B, C, np.zeros((1, 1)))
-    return num.ravel()
-
-
 def n4sid(data: IDData, nx=None, **options) -> IDSS:
     """MATLAB ``n4sid(data, nx)``; ``nx=None`` chooses the order from the singular values.
 
@@ -195,7 +386,8 @@ def n4sid(data: IDData, nx=None, **options) -> IDSS:
     nx : int or None
         State dimension.
     **options
-        ``horizon``, ``feedthrough``, ``max_order`` (see :class:`N4SID`).
+        ``horizon``, ``feedthrough``, ``max_order``, ``method``, ``weighting``,
+        ``enforce_stability`` (see :class:`N4SID`).
 
     Returns
     -------

@@ -26,7 +26,8 @@ from scipy.optimize import least_squares
 from scipy.signal import cont2discrete, lfilter
 
 from ._blas import one_blas_thread
-from ._checks import check_data, check_enough_data, check_order
+from ._checks import check_data, check_enough_data, check_order, scaled
+from ._diagnose import finish
 from .data import IDData
 from .errors import SysidError
 from .polynomial import IDPoly, std_of
@@ -63,6 +64,7 @@ class IDTF:
     loss: float = float("nan")
     n_samples: int = 0
     report: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
 
     @property
     def parameters(self) -> np.ndarray:
@@ -82,13 +84,62 @@ class IDTF:
     def delay_samples(self) -> int:
         return int(round(self.iodelay / self.Ts))
 
-    def to_idpoly(self) -> IDPoly:
-        """Zero-order-hold equivalent output-error model ``B(q)/F(q)`` with the delay in ``nk``."""
-        return _discretise(self.num, self.den, self.Ts, self.delay_samples)
+    def to_idpoly(self, Ts=None) -> IDPoly:
+        """Zero-order-hold equivalent output-error model ``B(q)/F(q)`` with the delay in ``nk``.
+
+        Parameters
+        ----------
+        Ts : float or None
+            Sample time in seconds (default: the estimation data's ``self.Ts``).  The
+            delay must be a whole number of these samples (it is exact then).
+        """
+        if Ts is None:
+            return _discretise(self.num, self.den, self.Ts, self.delay_samples)
+        Ts = float(Ts)
+        d = self.iodelay / Ts
+        if abs(d - round(d)) > 1e-6 * max(1.0, d):
+            raise SysidError(f"the model's input delay {self.iodelay:g} s is not a whole number of samples of "
+                             f"Ts = {Ts:g} s, so its sampled form is not exact: use data sampled at a divisor of "
+                             f"the delay.")
+        return _discretise(self.num, self.den, Ts, int(round(d)))
 
     def to_lti_continuous(self):
         """(num, den, 0) for :mod:`sysid.convert` (the delay is not represented)."""
         return self.num.copy(), self.den.copy(), 0
+
+    def __repr__(self) -> str:
+        """MATLAB-style display: the transfer function, input delay, parameterization, status."""
+        from ._display import status_block
+
+        def spoly(c):
+            c = np.asarray(c, float)
+            n = c.size - 1
+            terms = []
+            for k, v in enumerate(c):
+                p = n - k
+                if v == 0.0:
+                    continue
+                mag = f"{abs(v):.4g}"
+                t = mag + (" s" if p == 1 else f" s^{p}" if p > 1 else "")
+                if p and abs(v) == 1.0:
+                    t = t[len(mag) + 1:]
+                terms.append(t if not terms and v > 0 else ("-" + t if not terms else ("- " if v < 0 else "+ ") + t))
+            return " ".join(terms) or "0"
+
+        num, den = spoly(self.num), spoly(self.den)
+        width = max(len(num), len(den))
+        pre = f"exp(-{self.iodelay:g}*s) * " if self.iodelay else ""
+        pad = " " * len(pre)
+        lines = ["Continuous-time identified transfer function.", "",
+                 f"  {pad}{num:^{width}}", f"  {pre}{'-' * width}", f"  {pad}{den:^{width}}", "",
+                 f"Input delay: {self.iodelay:g} seconds ({self.delay_samples} samples of {self.Ts:g} s)", "",
+                 "Parameterization:",
+                 f"   Number of poles: {self.den.size - 1}   Number of zeros: {self.num.size - 1}",
+                 f"   Number of free coefficients: {self.n_parameters}", ""]
+        lines += status_block(self, "TFEST", f"time domain data sampled at {self.Ts:g} s")
+        return "\n".join(lines)
+
+    __str__ = __repr__
 
     def poles(self) -> np.ndarray:
         """Poles in the s-plane (rad/s)."""
@@ -231,6 +282,8 @@ class TFEst:
             raise SysidError(f"nz must be smaller than np = {n} (proper, strictly), got {m}.")
         dmax = check_order(self.max_delay_samples, "max_delay_samples")
         check_enough_data(data.N - dmax, n + m + 1, f"tfest with {n} poles and {m} zeros")
+        original = data
+        data, sy, su = scaled(data)
         Ts = data.Ts
         if self.iodelay is None:
             d0 = self._scan_delay(data, n)
@@ -257,9 +310,14 @@ class TFEst:
             cov = lam * np.linalg.inv(J.T @ J)
         except np.linalg.LinAlgError:
             cov = None
-        model = IDTF(sol.x[n:].copy(), np.r_[1.0, sol.x[:n]], iodelay=d * Ts, Ts=Ts, covariance=cov,
-                     noise_variance=lam, loss=cost / N, n_samples=N,
+        g = sy / su
+        if cov is not None:
+            w = np.r_[np.ones(n), np.full(m + 1, g)]
+            cov = cov * np.outer(w, w)
+        model = IDTF(sol.x[n:] * g, np.r_[1.0, sol.x[:n]], iodelay=d * Ts, Ts=Ts, covariance=cov,
+                     noise_variance=lam * sy ** 2, loss=cost / N * sy ** 2, n_samples=N,
                      report=dict(nfev=sol.nfev, delay_candidates=candidates))
+        finish(model, original, f"tfest model ({n} poles, {m} zeros)", focus="simulation")
         self.model_ = model
         return model
 

@@ -51,7 +51,7 @@ def parse_param_overrides(items: list[str] | None) -> dict[str, float]:
 
 
 def rig_with_overrides(rig_name: str, params: list[str] | None) -> Rig:
-    return load_rig(rig_name).with_params(parse_param_overrides(params))
+    return load_rig(rig_name).with_params(parse_param_overrides(params), origin="--param")
 
 
 def parse_effects(items: list[str] | None) -> list[Effect]:
@@ -65,3 +65,95 @@ def add_rig_arguments(parser, rig_required: bool = False) -> None:
                         help="override a rig parameter (SI units, repeatable), e.g. moving_mass_kg=1.5")
     parser.add_argument("--effect", action="append", metavar="NAME[:PARAM=VALUE,...]",
                         help="switch an optional effect on (repeatable), e.g. valve_deadband:deadband_V=0.3")
+
+
+# ---------------------------------------------------------------- numeric options
+def number_type(what: str, low: float | None = None, high: float | None = None, *, low_included: bool = True,
+                high_included: bool = True, integer: bool = False):
+    """An argparse ``type=`` that accepts a finite number in a range and refuses anything else in one line.
+
+    ``what`` is the expectation in words (e.g. ``"a duration in s > 0"``); argparse prints
+    ``argument --duration: expected a duration in s > 0, got 'nan'`` and exits 2.
+    """
+    import argparse
+    import math
+
+    def parse(text: str):
+        try:
+            value = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+        ok = math.isfinite(value)
+        if ok and low is not None:
+            ok = value >= low if low_included else value > low
+        if ok and high is not None:
+            ok = value <= high if high_included else value < high
+        if not ok:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        return value
+
+    parse.__name__ = what   # argparse names the type in some messages
+    return parse
+
+
+DURATION = number_type("a duration in s > 0", 0.0, low_included=False)
+SEED = number_type("a whole number >= 0 (seed)", 0, 2**32 - 1, integer=True)
+NOISE_SCALE = number_type("a finite number >= 0 (0: no noise)", 0.0)
+
+
+# ---------------------------------------------------------------- rig of a recording
+def effects_from_metadata(meta) -> list[Effect]:
+    """The effects a recording's ``effects`` metadata names (``NAME:PARAM=VALUE,...`` joined by ``;``)."""
+    text = (meta.get("effects") or "none").strip()
+    if text in ("", "none"):
+        return []
+    return [parse_effect_text(item) for item in text.split(";") if item.strip()]
+
+
+def overrides_from_metadata(meta, where: str) -> dict[str, float]:
+    """The ``rig_overrides`` metadata of a recording (``NAME=VALUE;...``), or ``{}``."""
+    text = (meta.get("rig_overrides") or "none").strip()
+    out: dict[str, float] = {}
+    if text in ("", "none"):
+        return out
+    for item in text.split(";"):
+        name, eq, value = item.partition("=")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            eq = ""
+        if not eq:
+            raise PneusimError(f"{where}: metadata 'rig_overrides' item {item!r}: expected NAME=VALUE")
+    return out
+
+
+def rig_for_recording(recording, path: str, rig_option: str | None, params: list[str] | None = None,
+                      use_metadata_overrides: bool = False) -> Rig:
+    """The rig a recording is checked, fitted or re-run against.
+
+    ``--rig`` (a shipped name or a rig file) wins; else the recording's ``rig_file`` metadata when
+    that file exists, else its ``rig`` name, which must be known.  ``use_metadata_overrides`` applies
+    the recording's ``rig_overrides`` (a re-run); ``--param`` overrides come last.
+    """
+    from ..rig import known_rig_names
+
+    meta = recording.metadata
+    if rig_option:
+        rig = load_rig(rig_option)
+    else:
+        name = recording.rig
+        rig_file = meta.get("rig_file")
+        if rig_file and Path(rig_file).is_file():
+            rig = load_rig(rig_file)
+        elif not name:
+            raise PneusimError(f"{path} names no rig in its metadata ('# rig: ...'); give --rig NAME or --rig FILE.toml")
+        else:
+            try:
+                rig = load_rig(name)
+            except PneusimError:
+                raise PneusimError(f"{path}: metadata 'rig: {name}' is not a known rig (shipped: "
+                                   f"{', '.join(known_rig_names())}); give --rig FILE.toml, the rig file of "
+                                   "the rig that recorded it") from None
+        if use_metadata_overrides:
+            rig = rig.with_params(overrides_from_metadata(meta, path), origin=f"{path} rig_overrides")
+    return rig.with_params(parse_param_overrides(params), origin="--param")

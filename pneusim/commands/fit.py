@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from ..errors import PneusimError
-from ..recording import read_recording
-from .common import add_rig_arguments, output_file, output_folder, parse_effects, rig_with_overrides
+from ..recording import check_plausible, read_recording
+from .common import add_rig_arguments, output_file, output_folder, parse_effects, rig_for_recording
 
 
 def register(sub) -> None:
@@ -15,7 +15,11 @@ def register(sub) -> None:
                     "with standard errors, correlations and a validation fit on data the fit never saw.",
         epilog="examples:\n  pneusim fit run.csv --json fit.json --report fit-report\n"
                "  pneusim fit run.csv --effect valve_deadband:deadband_V=0.2 --free friction_coulomb_N "
-               "--free valve_deadband.deadband_V",
+               "--free valve_deadband.deadband_V\n\n"
+               "exit status: 0 fitted; 2 bad input (one line on stderr); 3 fitted, but the residual stays far\n"
+               "above the sensor noise (residual rms / noise std above 1.5 for some measured signal: the model\n"
+               "does not explain the recording; the result is still written). Above 1.1 the result says\n"
+               "converged_to_noise: false and success: false and carries a warning.",
         formatter_class=__import__("argparse").RawDescriptionHelpFormatter)
     p.add_argument("recording", metavar="RECORDING", help="pneusim-recording/1 file (.csv or .mat)")
     add_rig_arguments(p)
@@ -27,6 +31,8 @@ def register(sub) -> None:
     p.add_argument("--json", metavar="OUT.json", help="write the result as JSON")
     p.add_argument("--report", metavar="DIR", help="write report.md, fit.json and fit.png into DIR")
     p.add_argument("--quiet", action="store_true", help="print only the validation fit")
+    p.add_argument("--rig-out", metavar="FITTED.toml", help="write the rig with the fitted values as a rig file "
+                   "that --rig accepts")
     p.set_defaults(func=run)
 
 
@@ -37,14 +43,22 @@ def run(args) -> int:
         output_file(args.json, "--json", (".json",))
     if args.report:
         output_folder(args.report, "--report")
+    if args.rig_out:
+        output_file(args.rig_out, "--rig-out", (".toml",))
     recording = read_recording(args.recording)
-    rig_name = args.rig or recording.rig
-    if not rig_name:
-        raise PneusimError(f"{args.recording} names no rig in its metadata ('# rig: ...'); give --rig")
-    rig = rig_with_overrides(rig_name, args.param)
+    rig = rig_for_recording(recording, args.recording, args.rig, args.param)
+    check_plausible(recording, rig)   # a 1e30 V command or pressures in bar are refused before any work
+    mismatch = None
+    if args.rig and recording.rig and recording.rig != rig.name:
+        mismatch = (f"--rig {args.rig} ({rig.name}) differs from the rig the recording names ('rig: "
+                    f"{recording.rig}'): the fit describes {recording.rig}'s data with {rig.name}'s known values")
+        import sys
+        print(f"pneusim fit: warning: {mismatch}", file=sys.stderr)
     effects = parse_effects(args.effect)
     result = fit_recording(recording, rig, effects, free=args.free, validation_fraction=args.validation_fraction,
-                           verbose=not args.quiet)
+                           quiet=args.quiet)
+    if mismatch:
+        result.warnings.insert(0, mismatch)   # in the summary, the JSON and the report
     if args.quiet:
         print(f"validation fit {result.fit_percent:.2f} %")
     else:
@@ -55,4 +69,19 @@ def run(args) -> int:
     if args.report:
         from ..fit.report import write_fit_report
         print(f"wrote {write_fit_report(result, args.report)}")
+    if args.rig_out:
+        import dataclasses
+        from pathlib import Path
+
+        from ..rig import write_rig
+        fitted = dataclasses.replace(result.rig_, name=Path(args.rig_out).stem,
+                                     description=f"{rig.name} fitted to {args.recording} (pneusim fit)")
+        write_rig(fitted, args.rig_out)
+        print(f"wrote {args.rig_out} (use it with --rig {args.rig_out})")
+    from ..fit.result import FAR_ABOVE_NOISE
+    if result.normalised_residual > FAR_ABOVE_NOISE:
+        import sys
+        print(f"pneusim fit: the residual is {result.normalised_residual:.2f} times the sensor noise (above "
+              f"{FAR_ABOVE_NOISE}): the model does not explain this recording (exit status 3)", file=sys.stderr)
+        return 3
     return 0

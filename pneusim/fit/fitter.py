@@ -23,6 +23,8 @@
 
 from __future__ import annotations
 
+import logging
+import sys
 import time
 from typing import Sequence
 
@@ -42,6 +44,8 @@ from .stages import polish, trust_region
 from .uncertainty import covariance
 
 __all__ = ["fit_recording", "noise_std_estimate"]
+
+_LOG = logging.getLogger("pneusim.fit")
 
 #: alternative starts of the pre-fit, as factors on the starting values (deterministic)
 _START_FACTORS = (
@@ -68,7 +72,8 @@ def noise_std_estimate(values: np.ndarray) -> float:
 def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: Sequence[Effect] = (),
                   free: Sequence[str] | None = None, *, validation_fraction: float = 0.3,
                   segment_samples: int = 50, prefit_samples: int = 2000, starts: int = 3,
-                  rtol: float = 1e-6, threads: int = 2, max_iter: int = 40, verbose: bool = False) -> FitResult:
+                  rtol: float = 1e-6, threads: int = 2, max_iter: int = 40, verbose: bool = False,
+                  quiet: bool = False, warm_start: FitResult | None = None) -> FitResult:
     """Fit the rig's uncertain parameters (and those of ``effects``) to ``recording``.
 
     Parameters
@@ -98,8 +103,28 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         Threads integrating segments in parallel.
     max_iter : int
         IPOPT iterations per polishing round.
+    quiet : bool
+        Print nothing.  By default one line per stage (pre-fit, trust region, IPOPT, uncertainty,
+        validation) goes to standard error with its time and normalised residual; the same lines go
+        to the ``logging`` logger ``pneusim.fit`` at INFO level either way.
     verbose : bool
-        Print each stage's outcome.
+        Kept for compatibility: ``verbose=True`` prints the stage lines even with ``quiet``.
+    warm_start : FitResult, optional
+        A fit of the **same recording** (same estimation part) to start from, typically the nominal
+        fit when diagnosis refits with one more effect::
+
+            nominal = fit_recording(rec, rig, quiet=True)
+            refit = fit_recording(rec, rig, effects=[make_effect("valve_deadband")],
+                                  warm_start=nominal, quiet=True)
+
+        Starting values: every parameter the warm fit had takes its fitted value (free or fixed
+        now); new effect parameters start at the effect's given values.  Segment start states: the
+        warm fit's estimated states at every sample (so segment lengths may differ); states the warm
+        model lacks (spool, temperatures, supply pressure) start from the model's equilibrium
+        (:meth:`ActuatorModel.initial_state`) at that sample's position and command.  The pre-fit
+        and the alternative starts are skipped: the trust region and IPOPT start there directly.
+        Scales and bounds stay those of ``rig``'s data-sheet values, so a warm and a cold fit
+        solve the same problem.  ``solver["warm_start"]`` is True in the result.
 
     Raises
     ------
@@ -108,6 +133,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         parameters, or the optimiser could not fit it.
     """
     started = time.perf_counter()
+    say = _Progress(quiet and not verbose, started)
     rig = _resolve_rig(recording, rig)
     model = ActuatorModel(effects)
     delay_s = model.command_delay_s()
@@ -120,11 +146,15 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
                        "few fixed delays")
     if not 0.0 < validation_fraction <= 0.9:
         raise FitError(f"validation_fraction must be in (0, 0.9], got {validation_fraction}")
-    p_start = model.param_vector(rig)
+    p_nominal = model.param_vector(rig)
+    p_start = p_nominal.copy()
+    if warm_start is not None:
+        p_start = _warm_parameters(warm_start, model, p_start)
     index = [model.param_names.index(name) for name in free]
-    scales = np.array([parameter_scale(name, p_start[i]) for name, i in zip(free, index)])
-    bounds = np.array([parameter_bounds(name, p_start[i]) for name, i in zip(free, index)])
-    theta_start = p_start[index] / scales
+    scales = np.array([parameter_scale(name, p_nominal[i]) for name, i in zip(free, index)])
+    bounds = np.array([parameter_bounds(name, p_nominal[i]) for name, i in zip(free, index)])
+    lower, upper = bounds[:, 0] / scales, bounds[:, 1] / scales
+    theta_start = np.clip(p_start[index] / scales, lower, upper)
 
     signals, sigma = _signals(recording, rig, model)
     n = recording.n_samples
@@ -133,8 +163,9 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         raise FitError(f"{_name(recording)}: {n} samples are too few to fit on {1 - validation_fraction:.0%} and "
                        "validate on the rest (at least 100 estimation and 20 validation samples)")
     _check_excitation(recording, rig, n_est, sigma["position_m"])
+    if warm_start is not None:
+        _check_warm_start(warm_start, recording, n_est)
     seg = max(10, int(segment_samples))
-    lower, upper = bounds[:, 0] / scales, bounds[:, 1] / scales
 
     def window(stop):
         return FitData(recording.time_s[:stop], recording.valve_cmd_V[:stop], float(recording.valve_cmd_V[0]),
@@ -147,38 +178,51 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         hi = np.concatenate([upper, np.tile(x_hi / pb.x_scale, pb.n_segments)])
         return pb, lo, hi
 
-    # pre-fit on a short window from a start, then the whole estimation part from the pre-fit: trust
-    # region first, then IPOPT on the exact constrained problem.  A short window can leave two basins
-    # equally good (the valve's critical pressure ratio against its conductance, say) that the whole
-    # part tells apart: a fit that ends well above its pre-fit's residual is retried from the next start.
-    pre_pb, pre_lo, pre_hi = problem(min(n_est, prefit_samples))
     pb, lo, hi = problem(n_est)
     attempts, fits = [], []
-    for k, factors in enumerate(_START_FACTORS[:max(1, starts)]):
-        theta0 = np.clip(theta_start * np.array([factors.get(name, 1.0) for name in free]), lower, upper)
-        v0 = pre_pb.join(theta0, initial_starts(pre_pb, theta0, recording, pre_pb.data.n_samples))
-        v_pre, rms_pre, info = trust_region(pre_pb, v0, pre_lo, pre_hi, defect_weight=1e3)
-        theta0, prefit_states = pre_pb.split(v_pre)
-        attempts.append({"start": k + 1, "rms_normalised": rms_pre, **info})
-        if verbose:
-            print(f"  start {k + 1}, pre-fit: {info['status']} after {info['evaluations']} evaluations, "
-                  f"{info['seconds']:.1f} s, normalised rms residual {rms_pre:.3g}")
-        x_init = initial_starts(pb, theta0, recording, n_est)
-        for j, first in enumerate(pb.starts.tolist()):
-            if first in pre_pb.starts and first < pre_pb.starts[-1]:
-                x_init[j] = prefit_states[list(pre_pb.starts).index(first)]
-        v_ls, rms_ls, info = trust_region(pb, pb.join(theta0, x_init), lo, hi, defect_weight=1e4)
+    if warm_start is not None:
+        # a refit: no pre-fit, no alternative starts; trust region and IPOPT from the warm point
+        x_init = _warm_states(warm_start, pb, p_start, recording)
+        v_ls, rms_ls, info = trust_region(pb, pb.join(theta_start, x_init), lo, hi, defect_weight=1e4)
+        say(f"warm start: trust region {info['status']} after {info['evaluations']} evaluations "
+            f"({info['seconds']:.1f} s), normalised rms residual {rms_ls:.3g}")
         res = polish(pb, v_ls, lo, hi, max_iter, rtol, penalty=1e4)
         rms = float(np.sqrt(res.objective / max(pb.n_residuals, 1)))
-        attempts[-1].update(fit_rms_normalised=rms, ipopt_status=res.status, ipopt_iterations=res.iterations)
-        fits.append((res.objective if np.isfinite(res.objective) else np.inf, k, res))
-        if verbose:
-            print(f"  start {k + 1}, fit: trust region {info['evaluations']} evaluations ({info['seconds']:.1f} s, "
-                  f"rms {rms_ls:.3g}), IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s), "
-                  f"normalised rms residual {rms:.3g}")
-        if np.isfinite(rms) and rms <= max(1.25 * rms_pre, rms_pre + 0.2):
-            break
-    pre_pb.close()
+        say(f"warm start: IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s), "
+            f"normalised rms residual {rms:.3g}")
+        attempts.append({"start": "warm", "fit_rms_normalised": rms, "ipopt_status": res.status,
+                         "ipopt_iterations": res.iterations, **info})
+        fits.append((res.objective if np.isfinite(res.objective) else np.inf, 0, res))
+    else:
+        # pre-fit on a short window from a start, then the whole estimation part from the pre-fit: trust
+        # region first, then IPOPT on the exact constrained problem.  A short window can leave two basins
+        # equally good (the valve's critical pressure ratio against its conductance, say) that the whole
+        # part tells apart: a fit that ends well above its pre-fit's residual is retried from the next start.
+        pre_pb, pre_lo, pre_hi = problem(min(n_est, prefit_samples))
+        for k, factors in enumerate(_START_FACTORS[:max(1, starts)]):
+            theta0 = np.clip(theta_start * np.array([factors.get(name, 1.0) for name in free]), lower, upper)
+            v0 = pre_pb.join(theta0, initial_starts(pre_pb, theta0, recording, pre_pb.data.n_samples))
+            v_pre, rms_pre, info = trust_region(pre_pb, v0, pre_lo, pre_hi, defect_weight=1e3)
+            theta0, prefit_states = pre_pb.split(v_pre)
+            attempts.append({"start": k + 1, "rms_normalised": rms_pre, **info})
+            say(f"start {k + 1}, pre-fit ({pre_pb.data.n_samples} samples): trust region {info['status']} after "
+                f"{info['evaluations']} evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_pre:.3g}")
+            x_init = initial_starts(pb, theta0, recording, n_est)
+            for j, first in enumerate(pb.starts.tolist()):
+                if first in pre_pb.starts and first < pre_pb.starts[-1]:
+                    x_init[j] = prefit_states[list(pre_pb.starts).index(first)]
+            v_ls, rms_ls, info = trust_region(pb, pb.join(theta0, x_init), lo, hi, defect_weight=1e4)
+            say(f"start {k + 1}, fit ({n_est} samples): trust region {info['status']} after {info['evaluations']} "
+                f"evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_ls:.3g}")
+            res = polish(pb, v_ls, lo, hi, max_iter, rtol, penalty=1e4)
+            rms = float(np.sqrt(res.objective / max(pb.n_residuals, 1)))
+            attempts[-1].update(fit_rms_normalised=rms, ipopt_status=res.status, ipopt_iterations=res.iterations)
+            fits.append((res.objective if np.isfinite(res.objective) else np.inf, k, res))
+            say(f"start {k + 1}, fit: IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s), "
+                f"normalised rms residual {rms:.3g}")
+            if np.isfinite(rms) and rms <= max(1.25 * rms_pre, rms_pre + 0.2):
+                break
+        pre_pb.close()
     res = min(fits, key=lambda f: (f[0], f[1]))[2]
     if not np.isfinite(res.objective):
         pb.close()
@@ -188,6 +232,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
     estimate = pb.params_of(theta)
     uncertainty = covariance(pb, res.v)
     pb.close()
+    say("uncertainty: Gauss-Newton covariance done")
     x_boundary = uncertainty["states"][n_est - 1].copy()
     validation = _validate(model, estimate, recording, n_est, x_boundary, delay_s, rig.stroke_m, rtol)
     parameters = {}
@@ -196,16 +241,72 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         parameters[name] = ParameterEstimate(
             name=name, estimate=float(estimate[index[k]]), std=float(uncertainty["std"][k] * scales[k]),
             start=float(p_start[index[k]]), lower=float(lo_b), upper=float(hi_b))
-    return FitResult.build(
+    result = FitResult.build(
         recording=recording, rig=rig, model=model, free=free, parameters=parameters,
         correlation=uncertainty["correlation"][:len(free), :len(free)], params_vector=estimate,
-        n_estimation=n_est, sigma=uncertainty["sigma"],
-        validation=validation, solver={"status": res.status, "success": res.success, "iterations": res.iterations,
+        n_estimation=n_est, sigma=uncertainty["sigma"], noise_std=sigma,
+        validation=validation, solver={"status": res.status, "ipopt_success": res.success,
+                                       "iterations": res.iterations,
                                        "seconds": time.perf_counter() - started, "ipopt_seconds": res.seconds,
                                        "max_defect": res.max_defect, "prefit_attempts": attempts,
-                                       "formulation": res.formulation,
+                                       "formulation": res.formulation, "warm_start": warm_start is not None,
                                        "segments": int(pb.n_segments), "segment_samples": seg},
         estimation_states=uncertainty["states"])
+    say(f"done in {result.solver['seconds']:.1f} s: validation fit {result.fit_percent:.2f} %, normalised "
+        f"residual {result.normalised_residual:.3g} (noise level 1)"
+        + ("" if result.converged_to_noise else " -- ABOVE NOISE, see the warnings"))
+    return result
+
+
+class _Progress:
+    """One line per fit stage: to the ``pneusim.fit`` logger, and to standard error unless quiet."""
+
+    def __init__(self, quiet: bool, started: float):
+        self.quiet, self.started = quiet, started
+
+    def __call__(self, message: str) -> None:
+        line = f"fit [{time.perf_counter() - self.started:6.1f} s] {message}"
+        _LOG.info(line)
+        if not self.quiet:
+            print(line, file=sys.stderr, flush=True)
+
+
+def _check_warm_start(warm: FitResult, recording: Recording, n_est: int) -> None:
+    other = warm.recording
+    same = (other is not None and other.n_samples == recording.n_samples and warm.n_estimation == n_est
+            and np.array_equal(other.valve_cmd_V, recording.valve_cmd_V))
+    if not same or warm.estimation_states is None:
+        raise FitError(f"{_name(recording)}: warm_start must be a fit of this recording with the same "
+                       f"validation fraction ({n_est} estimation samples)")
+
+
+def _warm_parameters(warm: FitResult, model: ActuatorModel, p_start: np.ndarray) -> np.ndarray:
+    """``p_start`` with every parameter the warm fit's model has replaced by its fitted value."""
+    p = p_start.copy()
+    fitted = dict(zip(warm.model.param_names, np.asarray(warm.params_vector, float)))
+    for i, name in enumerate(model.param_names):
+        if name in fitted:
+            p[i] = fitted[name]
+    return p
+
+
+def _warm_states(warm: FitResult, pb: ShootingProblem, params: np.ndarray, recording: Recording) -> np.ndarray:
+    """Segment start states from the warm fit's states at every estimation sample; the states its
+    model lacks from this model's equilibrium at that sample's position and command."""
+    model = pb.model
+    values = dict(zip(model.param_names, params))
+    shared = [(i, warm.model.state_names.index(s)) for i, s in enumerate(model.state_names)
+              if s in warm.model.state_names]
+    x_lo, x_hi = pb.state_bounds()
+    out = np.zeros((pb.n_segments, pb.n))
+    for j, k in enumerate(pb.starts):
+        old = warm.estimation_states[k]
+        x = model.initial_state(None, float(old[0]), float(recording.valve_cmd_V[k]), params=values,
+                                pressures_Pa=(float(old[2]), float(old[3])))
+        for i, i_old in shared:
+            x[i] = old[i_old]
+        out[j] = np.clip(x, x_lo, x_hi)
+    return out
 
 
 # ----------------------------------------------------------------- pieces

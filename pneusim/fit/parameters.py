@@ -34,6 +34,8 @@ EFFECT_FREE = {
     "supply_pressure_droop": ("supply_pressure_droop.supply_volume_m3",
                               "supply_pressure_droop.supply_conductance_m3_per_s_Pa"),
     "external_load": ("external_load.force_N", "external_load.stiffness_N_per_m"),
+    # the reference difference is a choice of reference, degenerate with the friction levels: never freed
+    "pressure_dependent_friction": ("pressure_dependent_friction.pressure_coefficient",),
 }
 
 #: parameters found by a search over a grid instead of by gradient (they move command switch times)
@@ -56,6 +58,9 @@ _TABLE = {
     "heat_transfer.time_constant_s": (None, 1e-3, 100.0),
     "heat_transfer.wall_temperature_K": (293.15, 200.0, 400.0),
     "transport_delay.delay_s": (0.01, 0.0, 0.5),
+    # down to -0.5 (the factor stays positive up to |p_A - p_B| = supply gauge) so that a recording
+    # without the effect gives an estimate scattered around zero rather than pinned at a bound
+    "pressure_dependent_friction.pressure_coefficient": (1.0, -0.5, 20.0),
 }
 
 

@@ -19,6 +19,15 @@ __all__ = ["FitResult", "ParameterEstimate"]
 RELATIVE_STD_WARNING = 0.5
 #: correlations beyond this make two parameters indistinguishable from the recording
 CORRELATION_WARNING = 0.99
+#: a fit whose residual rms exceeds this multiple of the sensor noise (for any measured signal) has not
+#: reached the noise level: ``converged_to_noise`` is False, ``solver["success"]`` is False and a warning
+#: says so.  Why 1.1: with white noise the rms of N >= 1000 residuals scatters by 1/sqrt(2N) < 2.3 %
+#: around the true noise std, and the noise std itself is known to a few percent (the rig file, or the
+#: robust estimate from second differences); 10 % above it is beyond both, while a systematic misfit
+#: whose power is a fifth of the noise's already crosses it.
+ABOVE_NOISE_WARNING = 1.1
+#: far above noise: the model misses what the recording shows (``pneusim fit`` exits with code 3)
+FAR_ABOVE_NOISE = 1.5
 
 
 @dataclass
@@ -69,7 +78,15 @@ class FitResult:
         Parameters the recording does not pin down (huge variance, correlation
         above 0.99, at a bound).
     solver : dict
-        IPOPT status, iterations, time.
+        IPOPT status, iterations, time; ``success`` is IPOPT's success *and* ``converged_to_noise``.
+    noise_std : dict
+        Sensor noise std the residuals were divided by, per measured signal (SI units).
+    normalised_residuals : dict
+        Residual rms over noise std per measured signal (1 at the noise level).
+    normalised_residual : float
+        The largest of ``normalised_residuals``.
+    converged_to_noise : bool
+        ``normalised_residual <= ABOVE_NOISE_WARNING`` (1.1); when False, ``warnings`` says so.
     """
 
     recording_name: str
@@ -88,10 +105,11 @@ class FitResult:
     warnings: list = field(default_factory=list)
     recording: Recording | None = None
     estimation_states: np.ndarray | None = None
+    noise_std: dict = field(default_factory=dict)
 
     @classmethod
     def build(cls, *, recording: Recording, rig: Rig, model: ActuatorModel, free, parameters, correlation,
-              params_vector, n_estimation, sigma, validation, solver, estimation_states):
+              params_vector, n_estimation, sigma, validation, solver, estimation_states, noise_std=None):
         rig_updates = {k: p.estimate for k, p in parameters.items() if k in rig.params}
         effects = []
         for effect in model.effects:
@@ -105,8 +123,10 @@ class FitResult:
                      model=model, effects_=effects, free=list(free), parameters=parameters,
                      correlation=np.asarray(correlation), params_vector=np.asarray(params_vector),
                      n_estimation=n_estimation, sigma=sigma, validation=validation,
-                     solver=solver, recording=recording, estimation_states=estimation_states)
-        result.warnings = result._identifiability_warnings()
+                     solver=solver, recording=recording, estimation_states=estimation_states,
+                     noise_std=dict(noise_std or {}))
+        result.solver["success"] = bool(result.solver.get("ipopt_success", True)) and result.converged_to_noise
+        result.warnings = result._noise_warnings() + result._identifiability_warnings()
         return result
 
     # ----------------------------------------------------------------- access
@@ -119,6 +139,30 @@ class FitResult:
     def fit_percent(self) -> float:
         """Validation fit of the position, %."""
         return float(self.validation["fit_percent"])
+
+    @property
+    def normalised_residuals(self) -> dict[str, float]:
+        """Residual rms divided by the sensor noise std, per measured signal (1 = noise level)."""
+        return {k: float(self.sigma[k] / self.noise_std[k]) for k in self.sigma if self.noise_std.get(k, 0) > 0}
+
+    @property
+    def normalised_residual(self) -> float:
+        """The largest per-signal residual rms over noise std (1 = noise level)."""
+        values = self.normalised_residuals.values()
+        return float(max(values)) if values else float("nan")
+
+    @property
+    def converged_to_noise(self) -> bool:
+        """Whether every measured signal's residual is within ``ABOVE_NOISE_WARNING`` of its noise."""
+        return bool(math.isfinite(self.normalised_residual) and self.normalised_residual <= ABOVE_NOISE_WARNING)
+
+    def _noise_warnings(self) -> list[str]:
+        if self.converged_to_noise:
+            return []
+        parts = ", ".join(f"{k} {v:.2f}" for k, v in self.normalised_residuals.items())
+        return [f"the fit ends above the sensor noise (residual rms / noise std: {parts}; above "
+                f"{ABOVE_NOISE_WARNING} means the model does not explain the recording down to noise: a missing "
+                "effect, a wrong rig file, or a fit stuck in a local minimum)"]
 
     def _identifiability_warnings(self) -> list[str]:
         out = []
@@ -155,6 +199,11 @@ class FitResult:
             "correlation": {"names": list(self.free),
                             "matrix": [[_finite(float(v)) for v in row] for row in self.correlation]},
             "noise_std": {k: float(v) for k, v in self.sigma.items()},
+            "sensor_noise_std": {k: float(v) for k, v in self.noise_std.items()},
+            "normalised_residual": _finite(self.normalised_residual),
+            "normalised_residuals": {k: _finite(v) for k, v in self.normalised_residuals.items()},
+            "converged_to_noise": self.converged_to_noise,
+            "success": bool(self.solver.get("success", False)),
             "estimation": {"t_start_s": float(self.recording.time_s[0]) if self.recording is not None else 0.0,
                            "t_end_s": float(self.recording.time_s[self.n_estimation - 1])
                            if self.recording is not None else None,
@@ -179,6 +228,8 @@ class FitResult:
         lines.append(f"validation {v['t_start_s']:.3f}-{v['t_end_s']:.3f} s: fit {v['fit_percent']:.2f} % (position)")
         lines.append(f"IPOPT: {self.solver['status']} after {self.solver['iterations']} iterations; "
                      f"{self.solver['seconds']:.1f} s in all")
+        lines.append(f"normalised residual (rms / sensor noise): {self.normalised_residual:.3f}"
+                     + ("" if self.converged_to_noise else f" -- above noise (> {ABOVE_NOISE_WARNING})"))
         lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 

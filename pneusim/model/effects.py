@@ -20,7 +20,7 @@ import casadi as ca
 from ..errors import PneusimError
 from . import chamber, valve
 
-__all__ = ["Effect", "EFFECTS", "make_effect", "parse_effect_text"]
+__all__ = ["Effect", "EFFECTS", "make_effect", "parse_effect_text", "seal_pressure_factor"]
 
 
 class Effect:
@@ -31,6 +31,9 @@ class Effect:
     parameters: Mapping[str, float] = {}
     options: Mapping[str, tuple[str, ...]] = {}
     states: tuple[str, ...] = ()
+    #: physical range of a parameter, ``name: (low, high, low_included, high_included)``; any
+    #: parameter not listed must only be finite
+    ranges: Mapping[str, tuple[float, float, bool, bool]] = {}
 
     def __init__(self, **values):
         self.values = dict(self.parameters)
@@ -50,6 +53,10 @@ class Effect:
             else:
                 known = ", ".join(list(self.parameters) + list(self.options))
                 raise PneusimError(f"effect {self.name} has no parameter {key!r}; expected one of: {known}")
+        for key, value in self.values.items():
+            if not in_range(value, self.ranges.get(key)):
+                raise PneusimError(f"effect {self.name}: parameter {key} must be "
+                                   f"{range_words(self.ranges.get(key))}, got {value!r}")
 
     # --- identification ---------------------------------------------------
     def qualified(self) -> dict[str, float]:
@@ -108,10 +115,36 @@ class Effect:
         return ctx.param(f"{self.name}.{key}")
 
 
+_INF = math.inf
+POSITIVE = (0.0, _INF, False, False)
+NON_NEGATIVE = (0.0, _INF, True, False)
+
+
+def in_range(value: float, bounds) -> bool:
+    """True when ``value`` is finite and inside ``bounds`` (``(low, high, low_included, high_included)``)."""
+    if not math.isfinite(value):
+        return False
+    if bounds is None:
+        return True
+    lo, hi, lo_in, hi_in = bounds
+    return (value >= lo if lo_in else value > lo) and (value <= hi if hi_in else value < hi)
+
+
+def range_words(bounds) -> str:
+    """``bounds`` in words: ``'a finite number'``, ``'>= 0'``, ``'in (0, 1]'``."""
+    if bounds is None:
+        return "a finite number"
+    lo, hi, lo_in, hi_in = bounds
+    if hi == _INF:
+        return f"{'>=' if lo_in else '>'} {lo:g}"
+    return f"in {'[' if lo_in else '('}{lo:g}, {hi:g}{']' if hi_in else ')'}"
+
+
 class Leakage(Effect):
     name = "leakage"
     description = "laminar air flow across the piston seal (A<->B) or from a chamber to atmosphere"
     parameters = {"conductance_kg_per_s_Pa": 1.0e-9}
+    ranges = {"conductance_kg_per_s_Pa": NON_NEGATIVE}
     options = {"kind": ("internal", "external"), "chamber": ("a", "b")}
 
     def extra_flows(self, ctx):
@@ -131,6 +164,7 @@ class ValveDeadband(Effect):
     name = "valve_deadband"
     description = "spool overlap: no flow while the command is within +-d of null"
     parameters = {"deadband_V": 0.2}
+    ranges = {"deadband_V": NON_NEGATIVE}
 
     def deadband_V(self, ctx):
         return self.p(ctx, "deadband_V")
@@ -149,6 +183,7 @@ class ValveDynamics(Effect):
     name = "valve_dynamics"
     description = "spool opening follows the commanded opening through a second-order lag"
     parameters = {"natural_frequency_Hz": 20.0, "damping": 0.7}
+    ranges = {"natural_frequency_Hz": POSITIVE, "damping": POSITIVE}
     states = ("spool_opening", "spool_rate_per_s")
 
     def opening(self, ctx, commanded_opening):
@@ -170,6 +205,7 @@ class TransportDelay(Effect):
     name = "transport_delay"
     description = "dead time between the command and the valve (tubing, DAQ latency)"
     parameters = {"delay_s": 0.01}
+    ranges = {"delay_s": NON_NEGATIVE}
 
     def command_delay_s(self):
         return self.values["delay_s"]
@@ -179,6 +215,7 @@ class HeatTransfer(Effect):
     name = "heat_transfer"
     description = "heat exchange between chamber air and walls (not adiabatic)"
     parameters = {"time_constant_s": 0.1, "wall_temperature_K": 293.15}
+    ranges = {"time_constant_s": POSITIVE, "wall_temperature_K": POSITIVE}
     states = ("temperature_a_K", "temperature_b_K")
 
     def heat_rates_W(self, ctx):
@@ -203,6 +240,7 @@ class FrictionAsymmetry(Effect):
     name = "friction_asymmetry"
     description = "static and Coulomb friction multiplied by a factor when retracting"
     parameters = {"retract_factor": 1.5}
+    ranges = {"retract_factor": POSITIVE}
 
     def friction_factor(self, ctx):
         return ca.if_else(ctx.v < 0, self.p(ctx, "retract_factor"), 1.0)
@@ -213,6 +251,7 @@ class SupplyPressureDroop(Effect):
     description = "valve fed from a volume refilled from a regulator through a restriction"
     parameters = {"supply_volume_m3": 2.0e-4, "supply_conductance_m3_per_s_Pa": 5.0e-9,
                   "regulator_Pa": 701325.0}
+    ranges = {"supply_volume_m3": POSITIVE, "supply_conductance_m3_per_s_Pa": POSITIVE, "regulator_Pa": POSITIVE}
     states = ("supply_pressure_Pa",)
 
     def supply_Pa(self, ctx):
@@ -235,15 +274,73 @@ class ExternalLoad(Effect):
     name = "external_load"
     description = "a force not in the nominal model: constant (gravity, process load) plus a spring"
     parameters = {"force_N": 0.0, "stiffness_N_per_m": 0.0}
+    ranges = {"stiffness_N_per_m": NON_NEGATIVE}
     options = {"kind": ("constant", "spring")}
 
     def external_force_N(self, ctx):
         return self.p(ctx, "force_N") - self.p(ctx, "stiffness_N_per_m") * ctx.x_pos
 
 
+#: Pa: |p_A - p_B| is smoothed as d tanh(d / this): within 0.1 Pa of |d| above 6 kPa, at most 0.28 of this below
+PRESSURE_SMOOTHING_PA = 1000.0
+
+
+def seal_pressure_factor(difference_Pa, pressure_coefficient, reference_difference_Pa, supply_gauge_Pa,
+                         tanh=ca.tanh):
+    """Factor on the static and Coulomb levels of :class:`PressureDependentFriction`, dimensionless.
+
+    ``(1 + k |d| / S) / (1 + k d_ref / S)`` with ``d = p_A - p_B`` (Pa), ``|d|`` smoothed as
+    ``d tanh(d / PRESSURE_SMOOTHING_PA)``, ``S`` the supply gauge pressure (Pa).  Works on CasADi
+    symbols, and on NumPy arrays with ``tanh=numpy.tanh``.
+    """
+    magnitude = difference_Pa * tanh(difference_Pa / PRESSURE_SMOOTHING_PA)
+    return ((1.0 + pressure_coefficient * magnitude / supply_gauge_Pa)
+            / (1.0 + pressure_coefficient * reference_difference_Pa / supply_gauge_Pa))
+
+
+class PressureDependentFriction(Effect):
+    """Seal friction that grows with the pressure difference across the piston seal.
+
+    The law of the vocabulary (``shared/spec/diagnosis.md``): static and Coulomb
+    levels are ``F_0 (1 + k |p_A - p_B| / S)``, with ``F_0`` the level at zero
+    difference, ``k = pressure_coefficient`` (dimensionless) and ``S`` the supply
+    gauge pressure ``supply_Pa - atmosphere_Pa`` of the rig (Pa).  Viscous
+    friction and the Stribeck velocity are unchanged.
+
+    Parameterisation: the rig's ``friction_static_N`` and ``friction_coulomb_N``
+    stay the levels *at* ``reference_difference_Pa`` (``d_ref``), so the effect
+    multiplies them by ``(1 + k |d| / S) / (1 + k d_ref / S)``.  A constant-friction
+    (nominal) fit finds about the level at the pressure differences the recording
+    runs at; with ``d_ref`` there (default 50 kPa: a rig at rest near mid-stroke
+    holds 30-45 kPa across its seal, and moves start from there), the nominal
+    estimates are the right starting values when the effect is switched on, the
+    levels keep their meaning, and ``k`` is nearly uncorrelated with them.  With
+    the levels at zero difference instead, switching the effect on would move
+    the levels by a factor ``1 + k d_ref / S`` and tie them to ``k``.  ``d_ref``
+    is a choice of reference, not a property of the seal: do not free it in a fit
+    (it is degenerate with the levels); set it, e.g., to the typical ``|p_A - p_B|``
+    of the recording.  ``k = 0`` is the nominal model exactly.
+
+    ``|p_A - p_B|`` is smoothed (:data:`PRESSURE_SMOOTHING_PA`) so that the
+    right-hand side stays differentiable for CVODE's Newton iteration and the
+    fit's sensitivities, like the ``tanh`` of the friction through zero velocity.
+    """
+
+    name = "pressure_dependent_friction"
+    description = ("static and Coulomb friction that grow with |p_A - p_B|: "
+                   "level(d) = level(d_ref) (1 + k|d|/S) / (1 + k d_ref/S), S the supply gauge pressure")
+    parameters = {"pressure_coefficient": 2.0, "reference_difference_Pa": 5.0e4}
+    ranges = {"pressure_coefficient": NON_NEGATIVE, "reference_difference_Pa": NON_NEGATIVE}
+
+    def friction_factor(self, ctx):
+        return seal_pressure_factor(ctx.p_a - ctx.p_b, self.p(ctx, "pressure_coefficient"),
+                                    self.p(ctx, "reference_difference_Pa"),
+                                    ctx.param("supply_Pa") - ctx.param("atmosphere_Pa"))
+
+
 EFFECTS: dict[str, type[Effect]] = {cls.name: cls for cls in (
     Leakage, ValveDeadband, ValveOffset, ValveDynamics, TransportDelay, HeatTransfer,
-    FrictionAsymmetry, SupplyPressureDroop, ExternalLoad)}
+    FrictionAsymmetry, SupplyPressureDroop, ExternalLoad, PressureDependentFriction)}
 
 
 def make_effect(name: str, **values) -> Effect:

@@ -82,7 +82,7 @@ def run_blackbox(ident: dict, est: tuple, val: tuple, ts: float) -> list[dict]:
             yhat = np.asarray(sysid.simulate(model, d_val), float).ravel()
             init = "zero"
         row = {"identifier": ident["name"], "kind": ident["kind"], "reading": f"simulation, {init} initial state",
-               "status": "ok", **error_stats(val[0], yhat), "_yhat": yhat, **_model_g(model)}
+               "status": "ok", **error_stats(val[0], yhat), "_yhat": yhat, "_model": model, **_model_g(model)}
         if hasattr(sysid, "compare"):
             try:
                 row["fit_percent_sysid_compare"] = float(sysid.compare(d_val, model))
@@ -212,14 +212,17 @@ def run_physical_fit(ident: dict, rec, n_est: int, rig, effects, to_output, val_
     from ..simulate import rerun_recording
 
     try:
-        result = fit_recording(rec, rig, effects, validation_fraction=(rec.n_samples - n_est) / rec.n_samples)
+        options = {"starts": ident["fit_starts"]} if ident.get("fit_starts") else {}
+        result = fit_recording(rec, rig, effects, validation_fraction=(rec.n_samples - n_est) / rec.n_samples,
+                               **options)
         sim = rerun_recording(result.rig_, rec, result.effects_, noise_scale=0.0)
     except PneusimError as exc:
         return [not_available(ident, str(exc), status="failed")]
     yhat = to_output(sim.recording.position_m[n_est:])
     return [{"identifier": ident["name"], "kind": ident["kind"],
              "reading": "fitted rig, experiment re-run, scored on validation", "status": "ok",
-             **error_stats(val_y, yhat), "_yhat": yhat,
+             **error_stats(val_y, yhat), "_yhat": yhat, "_fit": result,
+             "model_effects": [e.to_text() for e in effects],
              "fit_percent_recorded_command": result.fit_percent,
              "fit_seconds": result.solver["seconds"], "solver_status": result.solver["status"],
              "estimates": {k: {"estimate": p.estimate, "std": p.std, "start": p.start}

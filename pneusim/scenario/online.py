@@ -20,7 +20,6 @@ prediction ``yhat(k | k-h)`` uses ``theta(k-h)``, the measured outputs up to
 
 from __future__ import annotations
 
-import time
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
@@ -66,9 +65,9 @@ class PaperRLS:
         self.k = 0
 
     def _psi(self) -> np.ndarray:
-        n = self.order
-        ys, us = list(self._y)[-n:][::-1], list(self._u)[-n:][::-1]
-        return np.concatenate((-np.asarray(ys), np.asarray(us)))
+        n, y, u = self.order, self._y, self._u
+        ly, lu = len(y), len(u)
+        return np.array([-y[ly - 1 - i] for i in range(n)] + [u[lu - 1 - i] for i in range(n)])
 
     def update(self, y: float) -> dict[int, float]:
         """Take the measurement ``y(k)``; return ``{h: yhat(k | k-h)}`` (NaN until enough history)."""
@@ -88,23 +87,28 @@ class PaperRLS:
         self._u.append(float(u))
 
     def predictions(self) -> dict[int, float]:
-        """``yhat(k | k-h)`` for every horizon, before ``y(k)`` is taken (inputs up to ``k-1`` known)."""
+        """``yhat(k | k-h)`` for every horizon, before ``y(k)`` is taken (inputs up to ``k-1`` known).
+
+        Plain Python floats: with n <= 5 and h <= 10 the numpy call overhead of per-step dot
+        products would cost ten times the arithmetic (this runs at every 1 ms sample of a live loop).
+        """
         n, out = self.order, {}
-        ys, us = np.asarray(self._y), np.asarray(self._u)      # index -1 is y(k-1), u(k-1)
+        ys, us = list(self._y), list(self._u)                   # index -1 is y(k-1), u(k-1)
+        ny, nu = len(ys), len(us)
         for h in self.horizons:
             if h > len(self._thetas) or self.k < n + h:
                 out[h] = float("nan")
                 continue
-            theta = self._thetas[-h]                            # theta(k-h)
+            theta = self._thetas[-h].tolist()                   # theta(k-h)
             a, b = theta[:n], theta[n:]
-            hist = list(ys[len(ys) - h - n + 1:len(ys) - h + 1]) if h > 0 else []
-            # hist holds y(k-h-n+1) .. y(k-h), oldest first
+            hist = ys[ny - h - n + 1:ny - h + 1]                # y(k-h-n+1) .. y(k-h), oldest first
             for j in range(1, h + 1):
                 # predict y(k-h+j) from the last n values of hist and u(k-h+j-1) .. u(k-h+j-n)
-                past_y = np.asarray(hist[-n:][::-1])
-                idx_u = len(us) - h + j - 1                     # index of u(k-h+j-1)
-                past_u = us[idx_u - n + 1:idx_u + 1][::-1]
-                hist.append(float(-a @ past_y + b @ past_u))
+                iu = nu - h + j - 1                             # index of u(k-h+j-1)
+                acc = 0.0
+                for i in range(n):
+                    acc += b[i] * us[iu - i] - a[i] * hist[-1 - i]
+                hist.append(acc)
             out[h] = hist[-1]
         return out
 
@@ -193,6 +197,8 @@ def simulate_online(rig: Rig, experiment: Experiment, estimators: dict[str, Pape
     """
     if experiment.sample_time_s != rig.sample_time_s:
         rig = rig.with_params({"sample_time_s": experiment.sample_time_s})
+    from ..mre.loop import StatusLine, run_loop
+
     plant = SimulatedPlant(rig, effects, seed=seed, noise_scale=noise_scale)
     ts, n, closed = experiment.sample_time_s, experiment.n_samples, experiment.loop == "closed"
     ctrl = experiment.controller
@@ -202,31 +208,15 @@ def simulate_online(rig: Rig, experiment: Experiment, estimators: dict[str, Pape
         x0 = float(np.clip(first, 0.0, rig.stroke_m)) if closed else 0.5 * rig.stroke_m
     n_warm = int(round(experiment.warmup_s / ts))
     plant.reset(x0, ctrl.command(-n_warm * ts, first, x0) if closed else first, t0_s=-n_warm * ts)
-    pos, cmd = np.empty(n), np.empty(n)
-    pa, pb = np.empty(n), np.empty(n)
-    preds = {(name, h): np.full(n, np.nan) for name, est in estimators.items() for h in est.horizons}
-    thetas = {name: np.empty((n, est.theta.size)) for name, est in estimators.items()}
-    steps = range(-n_warm, n)
-    if progress:
-        from tqdm import tqdm
-        steps = tqdm(steps, desc="online run", unit="sample", leave=False, mininterval=0.5)
-    started = time.perf_counter()
-    for k in steps:
-        m = plant.measure()
-        ref = experiment.signal[max(k, 0)]
-        u = ctrl.command(m.t_s, ref, m.position_m) if closed else ref
-        if k >= 0:
-            y = to_output(m.position_m)
-            for name, est in estimators.items():
-                for h, v in est.update(y).items():
-                    preds[(name, h)][k] = v
-                est.add_input(to_input(u, k))
-                thetas[name][k] = est.theta
-            pos[k], cmd[k], pa[k], pb[k] = m.position_m, u, m.pressure_a_Pa, m.pressure_b_Pa
-            if k == n - 1:
-                break
-        plant.step(u)
-    wall = time.perf_counter() - started
+    # the one sample loop of pneusim.mre, here as fast as possible (no pacing)
+    res = run_loop(plant, experiment.signal, ctrl if closed else None, estimators, to_output, to_input,
+                   n_warm=n_warm, status=StatusLine(interval_s=0.5) if progress else None)
+    if not res.completed:
+        if res.stop_reason.startswith("interrupted"):
+            raise KeyboardInterrupt
+        raise res.exception
+    pos, cmd, pa, pb = res.position_m, res.valve_cmd_V, res.pressure_a_Pa, res.pressure_b_Pa
+    preds, thetas, wall = res.predictions, res.thetas, res.wall_time_s
     meta = {"format": "pneusim-recording/1", "sample_time_s": repr(ts), "rig": rig.name, "loop": experiment.loop,
             "description": experiment.description or "online identification run",
             "generator": f"pneusim {__version__}", "seed": str(seed),

@@ -20,6 +20,8 @@ from ..recording import write_recording
 from .identify import clean_row
 from .runner import ScenarioResult
 from .figures import make_figures, slug
+from .generalisation import clean_generalisation, generalisation_blocks
+from .rigcompare import rig_variant_blocks
 from .tables import layout_blocks, rows_table, unit_label
 
 __all__ = ["write_report", "metrics_dict"]
@@ -35,6 +37,9 @@ def metrics_dict(result: ScenarioResult, files: dict) -> dict:
             "n_estimation": int(result.n_estimation), "rows": [clean_row(r) for r in result.rows],
             "variants": [{"name": v["name"], "description": v["description"], **v["summary"]}
                          for v in result.variants],
+            "rig_variants": [{**{k: v for k, v in rv.items() if k != "rows"},
+                              "rows": [clean_row(r) for r in rv["rows"]]} for rv in result.rig_variants],
+            "generalisation": clean_generalisation(result.generalisation),
             "timings_s": result.timings_s, "files": files}
 
 
@@ -186,6 +191,9 @@ def write_report(result: ScenarioResult, out_dir, scenario_path: str = "SCENARIO
         f"Run time: simulation {result.timings_s['simulation_s']:.1f} s, total {result.timings_s['total_s']:.1f} s.",
     ])]
     blocks += layout_blocks(result)
+    blocks += rig_variant_blocks(result)
+    gen_blocks = generalisation_blocks(result, out)
+    blocks += [b for b in gen_blocks if b[0] != "fig"]
     blocks += [("h", (2, "All rows")),
                ("p", "Every identifier and reading with the metrics listed in the scenario; metrics.json holds "
                      "all of them (fit %, mse = square error, rmse, min/max/std of actual, predicted and error), "
@@ -194,6 +202,7 @@ def write_report(result: ScenarioResult, out_dir, scenario_path: str = "SCENARIO
     blocks += _variants_blocks(result)
     blocks.append(("h", (2, "Figures")))
     blocks += [("fig", f) for f in figs]
+    blocks += [b for b in gen_blocks if b[0] == "fig"]
     sets = "".join(f" --set {shlex.quote(o)}" for o in overrides)
     blocks += [("h", (2, "Reproduce")), ("code", f"pneusim run {scenario_path}{sets} --out {out_dir}")]
     (out / "report.md").write_text(_render_md(blocks), encoding="utf-8")

@@ -57,6 +57,20 @@ class ScenarioResult:
     rig_name: str = ""
     rig: object = None
     output_per_m: float = 1.0
+    #: ``[{"name", "rig", "effects", "description", "rows", "rig_name"}]``: the scenario re-run on other rigs
+    rig_variants: list = field(default_factory=list)
+    #: what :func:`pneusim.scenario.generalisation.evaluate_conditions` returns, or ``None``
+    generalisation: dict | None = None
+    effects: list = field(default_factory=list)
+    experiment: object = None
+
+
+def merged_effects(rig, texts) -> list:
+    """The rig's own effects (a rig variant's ``[effects]``) plus the scenario's; a scenario effect replaces
+    the rig's effect of the same name."""
+    own = [parse_effect_text(t) for t in texts]
+    names = {e.name for e in own}
+    return [e for e in (parse_effect_text(t) for t in getattr(rig, "effects", ())) if e.name not in names] + own
 
 
 def end_stop_summary(position_m: np.ndarray, stroke_m: float, sample_time_s: float, margin_m: float = 1e-3) -> dict:
@@ -86,7 +100,7 @@ def run_scenario(spec: dict, progress: bool = False, variants: bool = True) -> S
     rig = load_rig(spec["rig"]["name"])
     if spec["rig"]["overrides"]:
         rig = rig.with_params(spec["rig"]["overrides"])
-    effects = [parse_effect_text(e) for e in spec["rig"]["effects"]]
+    effects = merged_effects(rig, spec["rig"]["effects"])
     exp_spec, data = spec["experiment"], spec["data"]
     experiment, raw = build_experiment(rig, exp_spec)
     if experiment.sample_time_s != rig.sample_time_s:
@@ -141,8 +155,9 @@ def run_scenario(spec: dict, progress: bool = False, variants: bool = True) -> S
                                         band_Hz=excitation_freqs_Hz(exp_spec["signal"], n * ts),
                                         output_per_m=scale)
         elif kind == "physical_fit":
-            new = idf.run_physical_fit(ident, rec, n_est, rig, effects, lambda p: output_signal(p, rig, data),
-                                       val[0])
+            model_effects = effects if ident.get("model_effects", "scenario") == "scenario" else []
+            new = idf.run_physical_fit(ident, rec, n_est, rig, model_effects,
+                                       lambda p: output_signal(p, rig, data), val[0])
         else:
             new = idf.run_blackbox(ident, est, val, ts)
         dt = time.perf_counter() - t1
@@ -151,7 +166,7 @@ def run_scenario(spec: dict, progress: bool = False, variants: bool = True) -> S
             r.setdefault("scored_on", "whole online run" if kind in ("rls", "published_z") else "validation half")
         rows.extend(new)
     result = ScenarioResult(spec, rows, rec, y, u, n_est, thetas=thetas, rig_name=rig.name, rig=rig,
-                            output_per_m=scale)
+                            output_per_m=scale, effects=effects, experiment=experiment)
     if variants:
         for var in spec.get("variants", []):
             t1 = time.perf_counter()
@@ -169,6 +184,32 @@ def run_scenario(spec: dict, progress: bool = False, variants: bool = True) -> S
                     rig.stroke_m)
             result.variants.append({"name": var["name"], "description": var.get("description", ""),
                                     "recording": vsim.recording, "summary": summary})
+    if variants and spec.get("rig_variants"):
+        t1 = time.perf_counter()
+        result.rig_variants = [run_rig_variant(spec, rv, progress) for rv in spec["rig_variants"]]
+        timings["rig_variants_s"] = time.perf_counter() - t1
+    if spec.get("conditions"):
+        from .generalisation import evaluate_conditions
+
+        t1 = time.perf_counter()
+        result.generalisation = evaluate_conditions(result, progress=progress)
+        timings["conditions_s"] = time.perf_counter() - t1
     result.timings_s = {**timings, "total_s": time.perf_counter() - started}
     result.timings_s["main_run_end_stops"] = end_stop_summary(rec.position_m, rig.stroke_m, ts)
     return result
+
+
+def run_rig_variant(spec: dict, variant: dict, progress: bool = False) -> dict:
+    """The scenario re-run on ``variant['rig']`` (with its effects): same experiment, seed and identifiers;
+    the physical fit only if ``variant['physical']`` (it is the expensive row).  Returns the rows."""
+    sub = copy.deepcopy(spec)
+    sub["rig"]["name"] = variant["rig"]
+    sub["rig"]["effects"] = list(variant.get("effects", []))
+    sub["rig_variants"], sub["variants"], sub["conditions"] = [], [], []
+    for ident in sub["identifiers"]:
+        if ident["kind"] == "physical_fit" and not variant.get("physical", False):
+            ident["enabled"] = False
+    res = run_scenario(sub, progress=progress, variants=False)
+    return {"name": variant["name"], "rig": variant["rig"], "rig_name": res.rig_name,
+            "effects": [e.to_text() for e in res.effects], "description": variant.get("description", ""),
+            "rows": res.rows, "total_s": res.timings_s["total_s"]}

@@ -57,12 +57,19 @@ _SIGNAL_KIND_KEYS = {"multisine": ("components",), "pulses": ("base", "amplitude
 _IDENT_KEYS = {"name": str, "kind": str, "orders": list, "order": int, "forgetting": _NUM,
                "initial_covariance": _NUM, "horizons": list, "nx": int, "np": int, "nz": int,
                "iodelay_s": _NUM, "num": list, "den": list, "time_units": list, "delay": _NUM, "published": dict,
-               "input_offsets": list, "engine": str, "note": str, "enabled": bool}
+               "input_offsets": list, "engine": str, "note": str, "enabled": bool, "model_effects": str,
+               "fit_starts": int}
 _IDENT_COMMON = ("name", "kind", "published", "enabled", "note")
 _IDENT_KIND_KEYS = {"rls": ("order", "forgetting", "initial_covariance", "horizons", "engine"),
                     "arx": ("orders",), "armax": ("orders",), "ss": ("nx",), "tf": ("np", "nz", "iodelay_s"),
                     "published_z": ("num", "den", "input_offsets"),
-                    "published_s": ("num", "den", "delay", "time_units"), "physical_fit": ()}
+                    "published_s": ("num", "den", "delay", "time_units"), "physical_fit": ("model_effects", "fit_starts")}
+#: ``[[rig_variants]]``: the scenario re-run on another rig (e.g. a realistic variant), reported side by side
+_RIG_VARIANT_KEYS = {"name": (str, True, None), "rig": (str, True, None), "effects": (list, False, []),
+                     "description": (str, False, ""), "physical": (bool, False, False)}
+#: ``[[conditions]]``: operating conditions the models trained on the main run are validated on
+_CONDITION_KEYS = {"name": (str, True, None), "description": (str, False, ""), "rig_overrides": (dict, False, {}),
+                   "experiment": (dict, False, {})}
 
 
 def load_scenario(path: str | Path) -> dict:
@@ -75,6 +82,10 @@ def load_scenario(path: str | Path) -> dict:
     rig_name = data.get("rig", {}).get("name") if isinstance(data.get("rig"), dict) else None
     if isinstance(rig_name, str) and rig_name.endswith(".toml") and not Path(rig_name).is_absolute():
         data["rig"]["name"] = str((path.parent / rig_name).resolve())
+    for var in data.get("rig_variants", []) if isinstance(data.get("rig_variants"), list) else []:
+        name = var.get("rig") if isinstance(var, dict) else None
+        if isinstance(name, str) and name.endswith(".toml") and not Path(name).is_absolute():
+            var["rig"] = str((path.parent / name).resolve())
     return validate_scenario(data, where=str(path))
 
 
@@ -112,9 +123,10 @@ def _check_keys(where, prefix, given, allowed, context=""):
 def validate_scenario(data: dict, where: str = "scenario") -> dict:
     """Check every table and key of a scenario dict; return a deep copy with defaults filled in."""
     data = copy.deepcopy(data)
-    unknown = sorted(set(data) - set(_TABLES) - {"identifiers", "variants"})
+    unknown = sorted(set(data) - set(_TABLES) - {"identifiers", "variants", "rig_variants", "conditions"})
     if unknown:
-        _fail(where, unknown[0], f"unknown table; expected one of {', '.join(sorted(_TABLES))}, identifiers, variants")
+        _fail(where, unknown[0], f"unknown table; expected one of {', '.join(sorted(_TABLES))}, identifiers, "
+                                 "variants, rig_variants, conditions")
     for table, keys in _TABLES.items():
         given = data.setdefault(table, {})
         if not isinstance(given, dict):
@@ -173,7 +185,75 @@ def validate_scenario(data: dict, where: str = "scenario") -> dict:
         _validate_experiment(where, merged, prefix)
         merged_exps.append((prefix, merged))
     _validate_with_rig(where, data, merged_exps)
+    _validate_rig_variants(where, data)
+    _validate_conditions(where, data)
     return data
+
+
+def _list_of_tables(where, data, key, keys):
+    """``[[key]]`` tables with the given ``{name: (types, required, default)}``; defaults filled in."""
+    items = data.setdefault(key, [])
+    if not isinstance(items, list) or not all(isinstance(i, dict) for i in items):
+        _fail(where, key, f"expected [[{key}]] tables")
+    names = set()
+    for i, item in enumerate(items):
+        _check_keys(where, f"{key}[{i}]", item, keys)
+        for k, (types, required, default) in keys.items():
+            if k not in item:
+                if required:
+                    _fail(where, f"{key}[{i}].{k}", "required key missing")
+                item[k] = copy.deepcopy(default)
+            else:
+                _check_type(where, f"{key}[{i}].{k}", item[k], types)
+        if item["name"] in names:
+            _fail(where, f"{key}[{i}].name", f"duplicate name {item['name']!r}")
+        names.add(item["name"])
+    return items
+
+
+def _validate_rig_variants(where, data):
+    """``[[rig_variants]]``: the rig loads (shipped name or file), the effects parse."""
+    from ..model import parse_effect_text
+    from ..rig import load_rig
+
+    for i, var in enumerate(_list_of_tables(where, data, "rig_variants", _RIG_VARIANT_KEYS)):
+        try:
+            load_rig(var["rig"])
+        except PneusimError as exc:
+            _fail(where, f"rig_variants[{i}].rig", str(exc))
+        for j, text in enumerate(var["effects"]):
+            _check_type(where, f"rig_variants[{i}].effects[{j}]", text, str)
+            try:
+                parse_effect_text(text)
+            except (PneusimError, TypeError, ValueError) as exc:
+                _fail(where, f"rig_variants[{i}].effects[{j}]", f"{exc} (form: 'NAME:PARAM=VALUE,...')")
+
+
+def _validate_conditions(where, data):
+    """``[[conditions]]``: rig overrides the rig has (with possible values) and a valid merged experiment."""
+    from ..rig import load_rig
+
+    conds = _list_of_tables(where, data, "conditions", _CONDITION_KEYS)
+    if not conds:
+        return
+    rig = load_rig(data["rig"]["name"]).with_params(data["rig"]["overrides"])
+    for i, cond in enumerate(conds):
+        prefix = f"conditions[{i}]"
+        for key, value in cond["rig_overrides"].items():
+            _check_type(where, f"{prefix}.rig_overrides.{key}", value, _NUM)
+            if key not in rig.params:
+                _fail(where, f"{prefix}.rig_overrides.{key}", f"unknown parameter of rig {rig.name!r}")
+        try:
+            rig.with_params(cond["rig_overrides"])
+        except PneusimError as exc:
+            _fail(where, f"{prefix}.rig_overrides", getattr(exc, "reason", str(exc)))
+        cexp = cond["experiment"]
+        _check_keys(where, f"{prefix}.experiment", cexp, _TABLES["experiment"])
+        for key, value in cexp.items():
+            _check_type(where, f"{prefix}.experiment.{key}", value, _TABLES["experiment"][key][0])
+        merged = copy.deepcopy(data["experiment"])
+        merged.update(copy.deepcopy(cexp))
+        _validate_experiment(where, merged, f"{prefix}.experiment")
 
 
 def _check_choice(where, key, value, choices):
@@ -184,13 +264,13 @@ def _check_choice(where, key, value, choices):
 def _validate_experiment(where, exp, prefix):
     """The [experiment] table (or a variant's merged copy): values, controller and signal."""
     _check_choice(where, f"{prefix}.loop", exp["loop"], ("open", "closed"))
-    if not exp["duration_s"] > 0:
-        _fail(where, f"{prefix}.duration_s", f"expected a positive duration in s, got {exp['duration_s']!r}")
-    if exp.get("sample_time_s") is not None and not exp["sample_time_s"] > 0:
+    if not 0 < exp["duration_s"] < float("inf"):
+        _fail(where, f"{prefix}.duration_s", f"expected a positive finite duration in s, got {exp['duration_s']!r}")
+    if exp.get("sample_time_s") is not None and not 0 < exp["sample_time_s"] < float("inf"):
         _fail(where, f"{prefix}.sample_time_s", f"expected a positive sample time in s, got {exp['sample_time_s']!r}")
     for key in ("noise_scale", "warmup_s", "seed"):
-        if exp.get(key) is not None and exp[key] < 0:
-            _fail(where, f"{prefix}.{key}", f"expected a number >= 0, got {exp[key]!r}")
+        if exp.get(key) is not None and not (exp[key] >= 0 and exp[key] < float("inf")):   # NaN fails too
+            _fail(where, f"{prefix}.{key}", f"expected a finite number >= 0, got {exp[key]!r}")
     ctrl = exp.get("controller") or {}
     _check_keys(where, f"{prefix}.controller", ctrl, _CONTROLLER_KEYS)
     for key, value in ctrl.items():
@@ -284,6 +364,11 @@ def _validate_identifier(where, prefix, ident):
                                           "descending powers, as long as den at most)")
     if kind == "published_z":
         _numbers(where, f"{prefix}.input_offsets", ident.setdefault("input_offsets", [0.0]), what="input offsets")
+    if kind == "physical_fit":
+        _check_choice(where, f"{prefix}.model_effects", ident.setdefault("model_effects", "scenario"),
+                      ("scenario", "none"))
+        if ident.get("fit_starts", 1) < 1:
+            _fail(where, f"{prefix}.fit_starts", f"expected a positive integer, got {ident['fit_starts']!r}")
     if kind == "published_s":
         units = ident.setdefault("time_units", ["s"])
         if not units:
@@ -350,7 +435,7 @@ def set_dotted(data: dict, key: str, value: Any, where: str = "sweep") -> None:
     caught by :func:`validate_scenario` afterwards.
     """
     parts = key.split(".")
-    if parts[0] not in set(_TABLES) | {"identifiers", "variants"}:
+    if parts[0] not in set(_TABLES) | {"identifiers", "variants", "rig_variants", "conditions"}:
         raise InputFileError(f"cannot vary {key!r}: unknown scenario table {parts[0]!r}", path=where, field=key)
     node = data
     for i, part in enumerate(parts[:-1]):

@@ -70,9 +70,9 @@ def load_sweep(path) -> dict:
     "seeds", "variants"}`` with every varied key checked against the scenario."""
     path = Path(path)
     data = read_toml(path, "sweep")
-    unknown = sorted(set(data) - {"sweep", "base", "grid", "random", "points"})
+    unknown = sorted(set(data) - {"sweep", "base", "grid", "random", "points", "ablation"})
     if unknown:
-        raise InputFileError("unknown table; expected sweep, base, grid, random, points", path=path,
+        raise InputFileError("unknown table; expected sweep, base, grid, random, points, ablation", path=path,
                              field=unknown[0])
     points = data.get("points", [])
     if not isinstance(points, list) or not all(isinstance(p, dict) and p for p in points):
@@ -133,6 +133,9 @@ def load_sweep(path) -> dict:
         except InputFileError as exc:
             if exc.reason.startswith(("unknown key", "unknown table", "unknown parameter", "cannot vary")):
                 raise
+    if "ablation" in data:      # an effect ablation: its cases become points (pneusim.scenario.ablation)
+        from .ablation import prepare_ablation
+        sweep = prepare_ablation(sweep, data["ablation"], path)
     return sweep
 
 
@@ -215,25 +218,28 @@ def _dask_client(dask: str, workers: int):
                            "expected tcp://HOST:PORT of a running scheduler, or 'local'") from None
 
 
-def _executor_map(tasks, workers: int, dask: str | None, progress: bool):
-    """Yield the result of ``run_one(*task)`` for every task, as they complete; a worker that does not
-    return gives a failed result instead of stopping the sweep."""
+def _executor_map(tasks, workers: int, dask: str | None, progress: bool, func=None, lost=None, desc: str = "sweep"):
+    """Yield the result of ``func(*task)`` (default :func:`run_one`) for every task, as they complete; a
+    worker that does not return gives ``lost(task, exc)`` (default :func:`_lost_run`) instead of stopping
+    the sweep.  ``pneusim diagnose`` runs its recordings here too."""
+    func = func or run_one
+    lost = lost or _lost_run
     bar = None
     if progress:
         from tqdm import tqdm
-        bar = tqdm(total=len(tasks), desc="sweep", unit="run", mininterval=0.5)
+        bar = tqdm(total=len(tasks), desc=desc, unit="run", mininterval=0.5)
     try:
         if dask:
             from distributed import as_completed
 
             client, cluster = _dask_client(dask, workers)
             try:
-                futures = {client.submit(run_one, *t, pure=False): t for t in tasks}
+                futures = {client.submit(func, *t, pure=False): t for t in tasks}
                 for fut in as_completed(futures):
                     try:
                         yield fut.result()
                     except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker
-                        yield _lost_run(futures[fut], exc)
+                        yield lost(futures[fut], exc)
                     if bar:
                         bar.update()
             finally:
@@ -242,19 +248,19 @@ def _executor_map(tasks, workers: int, dask: str | None, progress: bool):
                     cluster.close()
         elif workers <= 0:
             for t in tasks:
-                yield run_one(*t)
+                yield func(*t)
                 if bar:
                     bar.update()
         else:
             from concurrent.futures import ProcessPoolExecutor, as_completed as cf_completed
 
             with ProcessPoolExecutor(max_workers=workers) as pool:
-                futures = {pool.submit(run_one, *t): t for t in tasks}
+                futures = {pool.submit(func, *t): t for t in tasks}
                 for fut in cf_completed(futures):
                     try:
                         yield fut.result()
                     except Exception as exc:  # noqa: BLE001 - e.g. BrokenProcessPool
-                        yield _lost_run(futures[fut], exc)
+                        yield lost(futures[fut], exc)
                     if bar:
                         bar.update()
     finally:
@@ -302,6 +308,9 @@ def run_sweep(sweep: dict, out_dir, workers: int | None = None, dask: str | None
     from .sweep_plots import summary_plots
     varied = list(dict.fromkeys(list(sweep["grid"]) + list(sweep["random"]) + [k for p in sweep["points"] for k in p]))
     summary_plots(table, varied, out)
+    if sweep.get("ablation"):
+        from .ablation import write_ablation_report
+        write_ablation_report(table, sweep, out)
     return {"n_runs": len(runs), "n_done_before": len(runs) - len(todo), "n_failed": sum(bool(r["error"]) for r in results),
             "wall_time_s": wall, "runs_per_s": len(todo) / wall if todo and wall > 0 else float("nan"), "table": table}
 

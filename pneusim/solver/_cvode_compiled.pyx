@@ -1,189 +1,223 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True
 # distutils: extra_compile_args = -ffp-contract=off
-"""Compiled right-hand side and Jacobian for scikits.odes' CVODE, and the sample loop in C.
+"""SUNDIALS CVODE driven from C on the CasADi-generated model, and the sample loop in C.
 
-* :class:`CompiledRhs` and :class:`CompiledJac` are scikits.odes callback
-  classes (``CV_RhsFunction``, ``CV_JacRhsFunction``).  scikits.odes' CVODE
-  calls their ``evaluate`` through Cython's vtable and ``evaluate`` calls the C
-  code CasADi generated for the model: no Python runs per evaluation.
-* :class:`Integrator` drives the CVODE memory that scikits.odes created and
-  configured (BDF, Newton, SUNDIALS' serial N_Vector and dense linear solver):
-  stop time, ``CVode``, ``CVodeReInit`` at input changes, counters.
+* :class:`Integrator` owns one CVODE memory (BDF, Newton, SUNDIALS' serial
+  N_Vector, dense matrix and dense direct linear solver), created and driven
+  through the SUNDIALS C functions that ``scikits.odes`` declares (its
+  ``c_cvode``, ``c_sundials``, ``c_nvector_serial``, ``c_sunmatrix`` and
+  ``c_sunlinsol`` Cython declarations) and linked against the SUNDIALS library
+  ``scikits.odes`` is built on.  Its right-hand side and Jacobian are C
+  callbacks that call the C code CasADi generated for the model, reading and
+  writing SUNDIALS' own vectors and dense (column-major, like CasADi's) matrix:
+  no Python and no copy per evaluation.
+* At a change of the held input the integration stops exactly at the sample
+  boundary (``CVodeSetStopTime``) and goes on from there with the BDF history
+  kept: only the held input in the right-hand side changes.  CVODE's local error
+  test sees the kink in the solution and cuts the step (and order) if it must;
+  the Jacobian is refreshed by CVODE when Newton converges slowly.  Restarting
+  (``CVodeReInit``) at every change, as before, costs an initial-step estimate and
+  a climb from order 1 with small steps at every sample (see
+  ``benchmarks/test_bench_simulator.py`` for steps and evaluations per sample).
 * :class:`SampleLoop` runs :func:`pneusim.simulate.simulate`'s sample loop
   (sensors, proportional controller, zero-order hold, transport delay) in C on
-  an :class:`Integrator`, for the built-in parts.
+  an :class:`Integrator`, for the built-in parts; the sample-by-sample plant
+  calls the same :meth:`Integrator.advance`.
 
 ``-ffp-contract=off``: no fused multiply-adds, so that the loop computes the
 same doubles as the Python code it replaces.
 """
 
-from cpython.exc cimport PyErr_Occurred
 from libc.stdlib cimport malloc, free
 from libc.string cimport memcpy
 from libc.math cimport nearbyint
 cimport numpy as cnp
 import numpy as np
 
-from scikits.odes.sundials.cvode cimport CVODE, CV_RhsFunction, CV_JacRhsFunction, CV_ErrHandler
-from scikits.odes.sundials.common_defs cimport DTYPE_t
-from scikits.odes.sundials.c_sundials cimport N_Vector, sunrealtype
-from scikits.odes.sundials.c_cvode cimport (CVode, CVodeSetStopTime, CVodeReInit, CV_NORMAL,
+from scikits.odes.sundials.c_sundials cimport (N_Vector, sunrealtype, SUNContext, SUNContext_Create,
+                                               SUNContext_Free, SUNMatrix, SUNLinearSolver, N_VDestroy,
+                                               SUNMatDestroy, SUNLinSolFree)
+from scikits.odes.sundials.c_nvector_serial cimport N_VNew_Serial, N_VGetArrayPointer_Serial, N_VEnableFusedOps_Serial
+from scikits.odes.sundials.c_sunmatrix cimport SUNDenseMatrix, SUNDenseMatrix_Data
+from scikits.odes.sundials.c_sunlinsol cimport SUNLinSol_Dense
+from scikits.odes.sundials.c_cvode cimport (CVodeCreate, CVodeInit, CVodeReInit, CVodeSVtolerances,
+                                            CVodeSetUserData, CVodeSetErrHandlerFn, CVodeSetMaxNumSteps,
+                                            CVodeSetLinearSolver, CVodeSetJacFn, CVodeSetStopTime,
+                                            CVodeSetInitStep, CVodeGetLastStep, CVodeGetActualInitStep, CVode, CVodeFree,
+                                            CV_BDF, CV_NORMAL, CV_ONE_STEP, CVodeGetLastOrder, CVRhsFn, CVLsJacFn, CVErrHandlerFn,
                                             CVodeGetNumSteps, CVodeGetNumRhsEvals, CVodeGetNumErrTestFails,
                                             CVodeGetNumNonlinSolvConvFails, CVodeGetNumJacEvals)
-from scikits.odes.sundials.c_nvector_serial cimport N_VGetArrayPointer_Serial, N_VGetLength_Serial
 
 cnp.import_array()
 
 ctypedef long long casadi_int
 ctypedef int (*casadi_fn)(const double** arg, double** res, casadi_int* iw, double* w, int mem) noexcept nogil
 
-
-cdef class CasadiKernel:
-    """A CasADi-generated C function ``f(x, u, p) -> out`` called by pointer.
-
-    ``u`` and ``p`` are shared buffers: writing into them changes the model.
-    """
-    cdef casadi_fn fn
-    cdef casadi_int* iw
-    cdef double* w
-    cdef const double* arg[3]
-    cdef double* res[1]
-    cdef object keep
-
-    def __cinit__(self):
-        self.iw = NULL
-        self.w = NULL
-
-    def __init__(self, compiled, double[::1] u, double[::1] p):
-        self.keep = (compiled, u, p)   # raw pointers into these are held below
-        self.fn = <casadi_fn> <size_t> compiled.address
-        self.iw = <casadi_int*> malloc(max(compiled.n_iw, 1) * sizeof(casadi_int))
-        self.w = <double*> malloc(max(compiled.n_w, 1) * sizeof(double))
-        if self.iw == NULL or self.w == NULL:
-            raise MemoryError()
-        self.arg[1] = &u[0]
-        self.arg[2] = &p[0]
-
-    def __dealloc__(self):
-        free(self.iw)
-        free(self.w)
-
-    cdef inline int call(self, const double* x, double* out) noexcept nogil:
-        self.arg[0] = x
-        self.res[0] = out
-        return self.fn(self.arg, self.res, self.iw, self.w, 0)
+#: what happens at a change of the held input (``Integrator.restart``)
+KEEP_HISTORY = 0      # stop at the boundary, go on with the BDF history (the default)
+REINIT = 1            # CVodeReInit: order 1, CVODE's own initial step estimate
+REINIT_LAST_STEP = 2  # CVodeReInit with the last step size as the initial step
+REINIT_LAST_H0 = 3
 
 
-cdef class CompiledRhs(CV_RhsFunction):
-    """CVODE right-hand side ``ydot = f(y, u, p)``.
-
-    The arrays are declared without a buffer type: scikits.odes hands over its
-    own contiguous float64 work arrays, and reading their data pointer skips
-    two buffer acquisitions per evaluation.
-    """
-    cdef CasadiKernel kernel
-
-    def __init__(self, CasadiKernel kernel):
-        self.kernel = kernel
-
-    cpdef int evaluate(self, DTYPE_t t, cnp.ndarray y, cnp.ndarray ydot, object userdata=None) except? -1:
-        return self.kernel.call(<double*> cnp.PyArray_DATA(y), <double*> cnp.PyArray_DATA(ydot))
+cdef struct Kernel:
+    casadi_fn fn
+    const double* arg[3]    # x, u, p
+    double* res[1]
+    casadi_int* iw
+    double* w
 
 
-cdef class CompiledJac(CV_JacRhsFunction):
-    """CVODE dense Jacobian ``J = df/dy``.
-
-    CasADi writes column-major, scikits.odes' ``J`` is a C-ordered (row-major)
-    array that it copies into SUNDIALS' dense matrix: transposed on the way.
-    """
-    cdef CasadiKernel kernel
-    cdef double* buffer
-    cdef int n
-
-    def __cinit__(self):
-        self.buffer = NULL
-
-    def __init__(self, CasadiKernel kernel, int n):
-        self.kernel = kernel
-        self.n = n
-        self.buffer = <double*> malloc(n * n * sizeof(double))
-        if self.buffer == NULL:
-            raise MemoryError()
-
-    def __dealloc__(self):
-        free(self.buffer)
-
-    cpdef int evaluate(self, DTYPE_t t, cnp.ndarray y, cnp.ndarray fy, cnp.ndarray J) except? -1:
-        cdef int i, j, flag
-        cdef double* out = <double*> cnp.PyArray_DATA(J)
-        if not cnp.PyArray_IS_C_CONTIGUOUS(J) or cnp.PyArray_SIZE(J) != self.n * self.n:
-            raise ValueError("expected a C-ordered n x n Jacobian array")
-        flag = self.kernel.call(<double*> cnp.PyArray_DATA(y), self.buffer)
-        for j in range(self.n):
-            for i in range(self.n):
-                out[i * self.n + j] = self.buffer[j * self.n + i]
-        return flag
+cdef struct Problem:
+    Kernel rhs        # f(x, u, p) -> xdot
+    Kernel jac        # df/dx (x, u, p), dense column-major n x n
+    int n
+    double u          # the held input the kernels read
+    char message[512]
 
 
-cdef class ErrorText(CV_ErrHandler):
-    """scikits.odes error handler keeping CVODE's last message (instead of printing it)."""
-    cdef public str message
-
-    def __init__(self):
-        self.message = ""
-
-    cpdef evaluate(self, int error_code, bytes module, bytes function, bytes msg, object user_data=None):
-        self.message = msg.decode("utf-8", "replace")
-
-
-cdef int _raise_pending() except -1:
-    # an exception raised inside a callback is left set by scikits.odes' C wrappers: propagate it
-    if PyErr_Occurred() != NULL:
-        return -1
+cdef int _kernel_init(Kernel* k, compiled, double* u, double* p) except -1:
+    if compiled.n_arg > 3 or compiled.n_res > 1:
+        raise ValueError(f"{compiled.name}: compiled kernels take (x, u, p) and give one output")
+    k.fn = <casadi_fn> <size_t> compiled.address
+    k.iw = <casadi_int*> malloc(max(compiled.n_iw, 1) * sizeof(casadi_int))
+    k.w = <double*> malloc(max(compiled.n_w, 1) * sizeof(double))
+    if k.iw == NULL or k.w == NULL:
+        raise MemoryError()
+    k.arg[0] = NULL
+    k.arg[1] = u
+    k.arg[2] = p
+    k.res[0] = NULL
     return 0
 
 
+cdef int _rhs(sunrealtype t, N_Vector y, N_Vector ydot, void* data) noexcept:
+    cdef Problem* pb = <Problem*> data
+    pb.rhs.arg[0] = <double*> N_VGetArrayPointer_Serial(y)   # u and p are fixed pointers
+    pb.rhs.res[0] = <double*> N_VGetArrayPointer_Serial(ydot)
+    return pb.rhs.fn(pb.rhs.arg, pb.rhs.res, pb.rhs.iw, pb.rhs.w, 0)
+
+
+cdef int _jac(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix J, void* data,
+              N_Vector tmp1, N_Vector tmp2, N_Vector tmp3) noexcept:
+    # SUNDIALS' dense matrix and CasADi's dense output are both column-major: written in place
+    cdef Problem* pb = <Problem*> data
+    pb.jac.arg[0] = <double*> N_VGetArrayPointer_Serial(y)
+    pb.jac.res[0] = <double*> SUNDenseMatrix_Data(J)
+    return pb.jac.fn(pb.jac.arg, pb.jac.res, pb.jac.iw, pb.jac.w, 0)
+
+
+cdef void _error(int code, char* module, char* function, char* msg, void* data) noexcept:
+    # keep CVODE's last message for our error text instead of printing it to stderr
+    cdef Problem* pb = <Problem*> data
+    cdef int i = 0
+    while msg[i] != 0 and i < 511:
+        pb.message[i] = msg[i]
+        i += 1
+    pb.message[i] = 0
+
+
 cdef class Integrator:
-    """Drives the CVODE memory of a scikits.odes ``CVODE`` solver from C.
+    """One CVODE memory on the compiled model: BDF, Newton, dense direct solver, exact Jacobian.
 
     Parameters
     ----------
-    solver : scikits.odes.sundials.cvode.CVODE
-        Configured with :class:`CompiledRhs` / :class:`CompiledJac`; initialised by :meth:`reset`.
-    u : ndarray (1,)
-        The input buffer the kernels read.
-    errors : ErrorText
-        The error handler given to ``solver``.
-
-    ``CVode`` runs with the GIL held: scikits.odes' C wrappers around our
-    callbacks handle Python objects.  The state lives in the solver's own
-    output vector (``solver.y``), read and written in place.
+    rhs, jac : pneusim.solver.codegen.CompiledFunction
+        The model's ``f(x, u, p)`` and ``df/dx(x, u, p)`` (dense), compiled.
+    params : ndarray (n_params,)
+        The parameter vector, shared: changing it in place changes the model.
+    n : int
+        Number of states.
+    rtol : float
+    atol : ndarray (n,)
+    max_steps : int
+        Internal steps allowed per call of :meth:`advance`.
     """
-    cdef CVODE solver
+    cdef Problem pb
+    cdef SUNContext ctx
     cdef void* mem
     cdef N_Vector y
-    cdef double* u_in            # the input buffer the kernels read
+    cdef N_Vector atol_v
+    cdef SUNMatrix A
+    cdef SUNLinearSolver LS
     cdef readonly int n
-    cdef object keep
-    cdef readonly ErrorText errors
     cdef readonly bint initialized
+    cdef public int restart          # KEEP_HISTORY, REINIT or REINIT_LAST_STEP
+    cdef object keep
     cdef long totals[5]
 
-    def __init__(self, CVODE solver, double[::1] u, ErrorText errors, int n):
+    def __cinit__(self):
+        self.mem = NULL
+        self.ctx = NULL
+        self.y = NULL
+        self.atol_v = NULL
+        self.A = NULL
+        self.LS = NULL
+        self.pb.rhs.iw = NULL
+        self.pb.rhs.w = NULL
+        self.pb.jac.iw = NULL
+        self.pb.jac.w = NULL
+
+    def __init__(self, rhs, jac, double[::1] params, int n, double rtol, double[::1] atol, long max_steps=50000, bint fused_ops=True):
         cdef int i
-        self.solver = solver
-        self.u_in = &u[0]
+        if atol.shape[0] != n:
+            raise ValueError(f"{n} absolute tolerances expected, got {atol.shape[0]}")
+        self.keep = (rhs, jac, params)   # the kernels call into these libraries and read params in place
         self.n = n
-        self.errors = errors
-        self.keep = [u]
+        self.pb.n = n
+        self.pb.u = 0.0
+        self.pb.message[0] = 0
+        _kernel_init(&self.pb.rhs, rhs, &self.pb.u, &params[0])
+        _kernel_init(&self.pb.jac, jac, &self.pb.u, &params[0])
+        if SUNContext_Create(NULL, &self.ctx) != 0:
+            raise MemoryError("SUNContext_Create failed")
+        self.y = N_VNew_Serial(n, self.ctx)
+        self.atol_v = N_VNew_Serial(n, self.ctx)
+        if self.y == NULL or self.atol_v == NULL:
+            raise MemoryError()
+        if fused_ops:
+            N_VEnableFusedOps_Serial(self.y, 1)   # CVODE clones its work vectors from y
+        for i in range(n):
+            N_VGetArrayPointer_Serial(self.y)[i] = 0.0
+            N_VGetArrayPointer_Serial(self.atol_v)[i] = atol[i]
+        self.mem = CVodeCreate(CV_BDF, self.ctx)
+        if self.mem == NULL:
+            raise MemoryError("CVodeCreate failed")
+        _check(CVodeInit(self.mem, <CVRhsFn> _rhs, 0.0, self.y), "CVodeInit")
+        _check(CVodeSVtolerances(self.mem, rtol, self.atol_v), "CVodeSVtolerances")
+        _check(CVodeSetUserData(self.mem, &self.pb), "CVodeSetUserData")
+        _check(CVodeSetErrHandlerFn(self.mem, <CVErrHandlerFn> _error, &self.pb), "CVodeSetErrHandlerFn")
+        _check(CVodeSetMaxNumSteps(self.mem, max_steps), "CVodeSetMaxNumSteps")
+        self.A = SUNDenseMatrix(n, n, self.ctx)
+        self.LS = SUNLinSol_Dense(self.y, self.A, self.ctx)
+        if self.A == NULL or self.LS == NULL:
+            raise MemoryError()
+        _check(CVodeSetLinearSolver(self.mem, self.LS, self.A), "CVodeSetLinearSolver")
+        _check(CVodeSetJacFn(self.mem, <CVLsJacFn> _jac), "CVodeSetJacFn")
+        self.restart = KEEP_HISTORY
         self.initialized = False
         for i in range(5):
             self.totals[i] = 0
 
+    def __dealloc__(self):
+        if self.mem != NULL:
+            CVodeFree(&self.mem)
+        if self.LS != NULL:
+            SUNLinSolFree(self.LS)
+        if self.A != NULL:
+            SUNMatDestroy(self.A)
+        if self.y != NULL:
+            N_VDestroy(self.y)
+        if self.atol_v != NULL:
+            N_VDestroy(self.atol_v)
+        free(self.pb.rhs.iw); free(self.pb.rhs.w); free(self.pb.jac.iw); free(self.pb.jac.w)
+        if self.ctx != NULL:
+            SUNContext_Free(&self.ctx)
+
     @property
     def u(self):
         """The input held now."""
-        return self.u_in[0]
+        return self.pb.u
 
     def state(self):
         """A copy of CVODE's current solution vector."""
@@ -193,25 +227,49 @@ cdef class Integrator:
         memcpy(<double*> cnp.PyArray_DATA(out), N_VGetArrayPointer_Serial(self.y), self.n * sizeof(double))
         return out
 
+    def rhs(self, double[::1] x, double u):
+        """``f(x, u, p)`` through the callback CVODE calls (with the input ``u``; the held input is kept)."""
+        cdef double held = self.pb.u
+        out = np.empty(self.n)
+        cdef double[::1] o = out
+        self._check_n(x)
+        self.pb.u = u
+        self.pb.rhs.arg[0] = &x[0]
+        self.pb.rhs.res[0] = &o[0]
+        flag = self.pb.rhs.fn(self.pb.rhs.arg, self.pb.rhs.res, self.pb.rhs.iw, self.pb.rhs.w, 0)
+        self.pb.u = held
+        return out if flag == 0 else None
+
+    def jacobian(self, double[::1] x, double u):
+        """``df/dx`` (n, n) through the Jacobian callback CVODE calls, on its dense matrix type."""
+        cdef double held = self.pb.u
+        cdef SUNMatrix J = SUNDenseMatrix(self.n, self.n, self.ctx)
+        cdef N_Vector v = N_VNew_Serial(self.n, self.ctx)
+        cdef int flag
+        self._check_n(x)
+        memcpy(N_VGetArrayPointer_Serial(v), &x[0], self.n * sizeof(double))
+        self.pb.u = u
+        flag = _jac(0.0, v, v, J, &self.pb, v, v, v)
+        self.pb.u = held
+        out = np.empty((self.n, self.n), order="F")
+        memcpy(<double*> cnp.PyArray_DATA(out), SUNDenseMatrix_Data(J), self.n * self.n * sizeof(double))
+        SUNMatDestroy(J)
+        N_VDestroy(v)
+        return np.ascontiguousarray(out) if flag == 0 else None
+
+    cdef int _check_n(self, double[::1] x) except -1:
+        if x.shape[0] != self.n:
+            raise ValueError(f"{self.n} states expected, got {x.shape[0]}")
+        return 0
+
     def reset(self, double t0, double[::1] x0, double u):
         """Start again at ``(t0, x0)`` with input ``u``; the counters start from zero."""
         cdef int i
-        if x0.shape[0] != self.n:
-            raise ValueError(f"{self.n} states expected, got {x0.shape[0]}")
-        self.u_in[0] = u
-        if not self.initialized:
-            # scikits.odes creates CVODE here and points its y0 vector at this array: keep it alive
-            x_init = np.array(x0, dtype=float)
-            self.keep.append(x_init)
-            self.solver.init_step(t0, x_init)
-            self.mem = self.solver._cv_mem
-            self.y = self.solver.y   # stays while the solver lives: init_step is not called again
-            if self.mem == NULL or self.y == NULL or N_VGetLength_Serial(self.y) != self.n:
-                raise RuntimeError("scikits.odes did not set up CVODE as expected")
+        self._check_n(x0)
+        self.pb.u = u
         memcpy(N_VGetArrayPointer_Serial(self.y), &x0[0], self.n * sizeof(double))
-        flag = CVodeReInit(self.mem, t0, self.y)
-        if flag < 0:
-            raise RuntimeError(f"CVodeReInit failed with flag {flag}")
+        _check(CVodeSetInitStep(self.mem, 0.0), "CVodeSetInitStep")   # CVODE estimates the first step
+        _check(CVodeReInit(self.mem, t0, self.y), "CVodeReInit")
         for i in range(5):
             self.totals[i] = 0
         self.initialized = True
@@ -227,15 +285,24 @@ cdef class Integrator:
 
     cdef int _advance(self, double t_now, double t_stop, double u, sunrealtype* t_reached) noexcept:
         cdef int flag
-        if u != self.u_in[0]:
-            # The input jumps: restart the BDF history at t_now so that no step is predicted
-            # from the solution under the old input (which fails with stiff spool dynamics).
-            self.u_in[0] = u
-            self._bank()
-            flag = CVodeReInit(self.mem, t_now, self.y)
-            if flag < 0:
-                return flag
-        CVodeSetStopTime(self.mem, t_stop)
+        cdef sunrealtype h = 0.0
+        if u != self.pb.u:
+            self.pb.u = u
+            if self.restart != KEEP_HISTORY:
+                if self.restart == REINIT_LAST_STEP:
+                    CVodeGetLastStep(self.mem, &h)
+                    CVodeSetInitStep(self.mem, h)
+                elif self.restart == REINIT_LAST_H0:
+                    CVodeGetActualInitStep(self.mem, &h)
+                    CVodeSetInitStep(self.mem, h)
+                self._bank()
+                flag = CVodeReInit(self.mem, t_now, self.y)
+                if flag < 0:
+                    return flag
+        # the input is held up to t_stop and may change there: never step past it
+        flag = CVodeSetStopTime(self.mem, t_stop)
+        if flag < 0:
+            return flag
         return CVode(self.mem, t_stop, self.y, t_reached, CV_NORMAL)
 
     def advance(self, double t_now, double t_stop, double u):
@@ -247,10 +314,34 @@ cdef class Integrator:
         cdef int flag
         if not self.initialized:
             raise RuntimeError("reset the integrator first")
-        self.errors.message = ""
+        self.pb.message[0] = 0
         flag = self._advance(t_now, t_stop, u, &t_reached)
-        _raise_pending()
-        return flag, t_reached, (self.errors.message if flag < 0 else "")
+        return flag, t_reached, self.message(flag)
+
+    def trace(self, double t_now, double t_stop, double u):  # DEBUG-TRACE (temporary)
+        cdef sunrealtype tr = t_now, h = 0
+        cdef int q = 0, flag
+        out = []
+        if u != self.pb.u:
+            self.pb.u = u
+            if self.restart != KEEP_HISTORY:
+                if self.restart == REINIT_LAST_STEP:
+                    CVodeGetLastStep(self.mem, &h)
+                    CVodeSetInitStep(self.mem, h)
+                self._bank()
+                CVodeReInit(self.mem, t_now, self.y)
+        CVodeSetStopTime(self.mem, t_stop)
+        while True:
+            flag = CVode(self.mem, t_stop, self.y, &tr, CV_ONE_STEP)
+            CVodeGetLastStep(self.mem, &h)
+            CVodeGetLastOrder(self.mem, &q)
+            out.append((tr, h, q, flag))
+            if flag != 0 or flag < 0:
+                break
+        return out
+
+    cdef str message(self, int flag):
+        return self.pb.message.decode("utf-8", "replace") if flag < 0 and self.pb.message[0] != 0 else ""
 
     def statistics(self):
         """Counters since :meth:`reset`: steps, rhs and Jacobian evaluations, error-test and Newton failures."""
@@ -264,6 +355,12 @@ cdef class Integrator:
         CVodeGetNumNonlinSolvConvFails(self.mem, &v[3])
         CVodeGetNumJacEvals(self.mem, &v[4])
         return {k: self.totals[i] + v[i] for i, k in enumerate(keys)}
+
+
+cdef int _check(int flag, str where) except -1:
+    if flag < 0:
+        raise RuntimeError(f"{where} failed with flag {flag}")
+    return 0
 
 
 cdef class SampleLoop:
@@ -392,7 +489,7 @@ cdef class SampleLoop:
         if normals.shape[0] < (k_to - k_from) * self.normals_per_sample:
             raise ValueError(f"{(k_to - k_from) * self.normals_per_sample} noise draws needed, "
                              f"{normals.shape[0]} given")
-        self.integ.errors.message = ""
+        self.integ.pb.message[0] = 0
         for kk in range(k_from, k_to):
             # Sensors.position, then the two pressures
             y = x[0] + (self.pos_std * normals[iz] if self.pos_std > 0 else 0.0)
@@ -428,5 +525,4 @@ cdef class SampleLoop:
             flag = self._step(u, &t_reached)
             if flag < 0:
                 break
-        _raise_pending()
-        return flag, t_reached, (self.integ.errors.message if flag < 0 else "")
+        return flag, t_reached, self.integ.message(flag)

@@ -88,6 +88,11 @@ cdef extern from "cvodes/cvodes.h":
     int CVodeGetSens(void* mem, realtype* tret, N_Vector* yS) nogil
     int CVodeGetNumSteps(void* mem, long* nsteps)
     int CVodeGetNumRhsEvals(void* mem, long* nfevals)
+    int CVodeGetSensNumRhsEvals(void* mem, long* nfSevals)
+    int CVodeGetNumLinSolvSetups(void* mem, long* nlinsetups)
+    int CVodeGetNumErrTestFails(void* mem, long* netfails)
+    int CVodeSetInitStep(void* mem, realtype hin) nogil
+    int CVodeGetLastStep(void* mem, realtype* hlast) nogil
     void CVodeFree(void** mem)
 
 cdef extern from "cvodes/cvodes_ls.h":
@@ -95,6 +100,17 @@ cdef extern from "cvodes/cvodes_ls.h":
                               N_Vector tmp1, N_Vector tmp2, N_Vector tmp3) noexcept nogil
     int CVodeSetLinearSolver(void* mem, SUNLinearSolver LS, SUNMatrix A)
     int CVodeSetJacFn(void* mem, CVLsJacFn jac)
+
+#: what ``SensitivityIntegrator.run`` does at a change of the held command
+cdef enum:
+    C_KEEP_HISTORY = 0   # stop exactly at the sample, go on with the BDF history
+    C_REINIT = 1         # CVodeReInit: order 1 and CVODE's initial step estimate at every change (default)
+# Measured on a 2000-sample closed-loop paper-2 window at the true parameters: KEEP_HISTORY is no
+# faster with sensitivities (1.07 s against 1.11 s per evaluation) and its residuals are four
+# times further from an rtol = 1e-10 reference (rms 0.067 against 0.016 noise std, at most 1.65
+# against 0.60); the fit keeps REINIT.
+KEEP_HISTORY = C_KEEP_HISTORY
+REINIT = C_REINIT
 
 ctypedef long long casadi_int
 ctypedef int (*casadi_fn)(const double** arg, double** res, casadi_int* iw, double* w, int mem) noexcept nogil
@@ -210,6 +226,7 @@ cdef class SensitivityIntegrator:
     cdef SUNLinearSolver LS
     cdef bint sens_on
     cdef object keep
+    cdef public int restart      # KEEP_HISTORY or REINIT at a command change
 
     def __cinit__(self):
         self.mem = NULL
@@ -260,6 +277,7 @@ cdef class SensitivityIntegrator:
         _check(CVodeSetLinearSolver(self.mem, self.LS, self.A), "CVodeSetLinearSolver")
         _check(CVodeSetJacFn(self.mem, _jac), "CVodeSetJacFn")
         self.sens_on = False
+        self.restart = C_REINIT
         self.yS = NULL
         if ns > 0:
             self.yS = N_VCloneVectorArray(ns, self.y)
@@ -314,8 +332,8 @@ cdef class SensitivityIntegrator:
         self.pb.message[0] = 0
         with nogil:
             for k in range(m):
-                if k == 0 or u[k] != self.pb.u:
-                    # the command jumps: restart the BDF history so that no step straddles it
+                if k == 0 or (self.restart == C_REINIT and u[k] != self.pb.u):
+                    # a new start (or, with REINIT, a command jump): fresh BDF history from order 1
                     self.pb.u = u[k]
                     flag = CVodeReInit(self.mem, t, self.y)
                     if flag < 0:
@@ -326,6 +344,10 @@ cdef class SensitivityIntegrator:
                         flag = CVodeSensToggleOff(self.mem)
                     if flag < 0:
                         break
+                # KEEP_HISTORY: the integration stops exactly at every sample (stop time), so no step
+                # straddles a command jump; the BDF history goes on with the new held command and
+                # CVODE's local error test cuts step and order where the kink needs it
+                self.pb.u = u[k]
                 flag = CVodeSetStopTime(self.mem, t_stop[k])
                 if flag < 0:
                     break
@@ -347,6 +369,19 @@ cdef class SensitivityIntegrator:
                                 s_out[o, i, j] = N_VGetArrayPointer(self.yS[j])[i]
         message = self.pb.message.decode("utf-8", "replace") if self.pb.message[0] != 0 else ""
         return (flag if flag < 0 else 0), float(tret), message
+
+    def stats(self):
+        """Cumulative CVODES counters: steps, right-hand side and sensitivity right-hand side
+        evaluations, linear solver setups, error test failures."""
+        cdef long nst = 0, nfe = 0, nfse = 0, nsetups = 0, netf = 0
+        CVodeGetNumSteps(self.mem, &nst)
+        CVodeGetNumRhsEvals(self.mem, &nfe)
+        if self.sens_on:
+            CVodeGetSensNumRhsEvals(self.mem, &nfse)
+        CVodeGetNumLinSolvSetups(self.mem, &nsetups)
+        CVodeGetNumErrTestFails(self.mem, &netf)
+        return {"steps": nst, "rhs": nfe, "sens_rhs": nfse, "setups": nsetups, "error_test_failures": netf}
+
 
 cdef int _check(int flag, str where) except -1:
     if flag < 0:

@@ -1,10 +1,11 @@
 """ODE backends that integrate the model between sample instants with the input held.
 
 * :class:`CvodeBackend` — SUNDIALS CVODE (BDF, Newton, dense direct solver with
-  the exact CasADi Jacobian) created and configured by ``scikits.odes``; right-hand
-  side and Jacobian are CasADi-generated C behind scikits.odes' callback classes
-  (:mod:`pneusim.solver._cvode_compiled`), called without Python in between, and
-  the integration to each sample (or a whole sample loop) is driven from C.
+  the exact CasADi Jacobian), the SUNDIALS library ``scikits.odes`` is built on,
+  created and driven from C through ``scikits.odes``' Cython declarations
+  (:mod:`pneusim.solver._cvode_compiled`); right-hand side and Jacobian are the
+  CasADi-generated C called by CVODE directly, and the integration to each sample
+  (or a whole sample loop) runs without Python in between.
 * :class:`ScipyBackend` — SciPy's ``solve_ivp`` (Radau, BDF or LSODA) with the
   same CasADi functions, restarted at every input change: the reference for
   cross-checks and the peer in benchmarks.
@@ -55,14 +56,12 @@ class _Backend:
 
 
 class CvodeBackend(_Backend):
-    """CVODE through scikits.odes with compiled right-hand side and Jacobian."""
+    """SUNDIALS CVODE (from the library scikits.odes is built on) driven from C on the compiled model."""
 
     name = "cvode"
 
     def __init__(self, model, params, *, rtol=1e-6, atol=None, stroke_m=0.3, max_steps=50000):
         super().__init__(model, params, rtol=rtol, atol=atol, stroke_m=stroke_m)
-        from scikits.odes import ode
-
         from . import _cvode_compiled as fast
         from .codegen import compile_functions
 
@@ -70,17 +69,9 @@ class CvodeBackend(_Backend):
         if compiled is None:  # generating the C source to look up the library takes ~10 ms: once per model
             compiled = _COMPILED[model] = compile_functions([model.rhs, model.jac], prefix=_prefix(model))
         n = len(model.state_names)
-        self._u = np.zeros(1)  # the input the compiled kernels read; written by the integrator
-        # scikits.odes callback classes; CVODE reaches them through scikits.odes' C wrappers
-        self._rhs = fast.CompiledRhs(fast.CasadiKernel(compiled[model.rhs.name()], self._u, self.params))
-        self._jac = fast.CompiledJac(fast.CasadiKernel(compiled[model.jac.name()], self._u, self.params), n)
-        errors = fast.ErrorText()  # keeps CVODE's message for our error text instead of printing it
-        self._ode = ode("cvode", self._rhs, jacfn=self._jac, old_api=False, lmm_type="BDF", nonlinsolver="newton",
-                        linsolver="dense", rtol=self.rtol, atol=np.array(self.atol, dtype=float),
-                        max_steps=max_steps, err_handler=errors, validate_flags=False)
-        # the scikits.odes CVODE object whose C memory the integrator drives
-        self._integrator = fast.Integrator(self._ode._integrator, self._u, errors, n)
-        self._keep = compiled  # the kernels call into these libraries
+        # CVODE memory, vectors, dense matrix and solver, with the CasADi kernels as C callbacks
+        self._integrator = fast.Integrator(compiled[model.rhs.name()], compiled[model.jac.name()], self.params,
+                                           n, self.rtol, np.ascontiguousarray(self.atol, dtype=float), max_steps)
 
     def set_params(self, params: np.ndarray):
         self.params[:] = params
@@ -92,7 +83,7 @@ class CvodeBackend(_Backend):
         self._integrator.reset(self.t, np.ascontiguousarray(self.x), float("nan"))
 
     def advance(self, t_stop: float, u: float) -> np.ndarray:
-        # a changed input restarts the BDF history so that no step is predicted from the old input
+        # stops exactly at t_stop; a changed input goes on from there with the BDF history kept
         flag, t_reached, message = self._integrator.advance(self.t, t_stop, u)
         if flag < 0:
             self.failed(flag, t_reached, message)

@@ -42,7 +42,8 @@ def test_compare_fit_is_matlab_nrmse():
     assert sysid.compare(d, m) == pytest.approx(100.0)
     m2 = sysid.idpoly([1, -0.8], [0, 0.5])
     expected = 100 * (1 - np.linalg.norm(d.y - 0.5 * d.y) / np.linalg.norm(d.y - d.y.mean()))
-    assert sysid.compare(d, m2) == pytest.approx(expected)
+    assert sysid.compare(d, m2, initial="zero") == pytest.approx(expected)
+    assert sysid.compare(d, m2) > sysid.compare(d, m2, initial="zero")  # default: estimated initial state
 
 
 def test_estimated_initial_condition_removes_transient():
@@ -51,4 +52,5 @@ def test_estimated_initial_condition_removes_transient():
     d = sysid.iddata(y, d0.u, 1.0)
     m = sysid.idpoly([1, -0.95], [0, 1])
     assert sysid.compare(d, m, initial="estimate") == pytest.approx(100.0, abs=1e-6)
-    assert sysid.compare(d, m) < 99.0
+    assert sysid.compare(d, m) == pytest.approx(100.0, abs=1e-6)  # MATLAB's default: 'e'
+    assert sysid.compare(d, m, initial="zero") < 99.0

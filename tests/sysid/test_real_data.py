@@ -110,9 +110,11 @@ def test_coupled_electric_drives_arx_reproduces_published_rmse(real_data_dir, re
 def test_hair_dryer_arx_fit(real_data_dir):
     """MATLAB example on the PT326 dryer: ARX[2 2 3] on detrended samples 1-300.
 
-    No published figure; the folder's own check is fit 84.2 % on samples 301-1000 (ours 86.0 %).
+    No published figure; the folder's own check is fit 84.2 % on samples 301-1000, simulated from
+    rest (ours 86.0 %); with compare's default estimated initial state ours is 89.8 %.
     """
     raw = np.genfromtxt(real_data_dir / "daisy_hair_dryer" / "dryer.csv", delimiter=",", skip_header=1)
     d = sysid.iddata(raw[:, 1], raw[:, 0], 0.08).detrend()
     m = sysid.arx(d[:300], [2, 2, 3])
-    assert sysid.compare(d[300:], m) == pytest.approx(84.2, abs=3.0)
+    assert sysid.compare(d[300:], m, initial="zero") == pytest.approx(84.2, abs=3.0)
+    assert sysid.compare(d[300:], m) >= sysid.compare(d[300:], m, initial="zero")

@@ -1,0 +1,102 @@
+"""``pneusim diagnose``: locate the mismatch, name the physics left out, model it, show the fit improve."""
+
+from __future__ import annotations
+
+import argparse
+
+EXAMPLES = """examples:
+  pneusim diagnose run.csv --json diagnosis.json --report diagnosis/     # open diagnosis/index.html
+  pneusim diagnose run.csv --effect valve_deadband --effect leakage       # consider only these effects
+  pneusim diagnose ../shared/practice2 --report results/practice2          # a folder: one report per file
+  pneusim diagnose a.csv b.csv --report out --dask local --workers 2      # on a loopback Dask cluster
+
+One recording: prints the findings (the JSON of shared/spec/diagnosis.md with --json; the report folder
+with --report: index.html, report.md, fit.png, residuals.png, one evidence plot per finding).
+Several recordings or a folder: runs them in parallel on the sweep executor (local processes by default)
+and writes DIR/STEM/ (report), DIR/STEM.json and DIR/summary.csv + summary.md (one row per recording;
+a recording that fails is a row with its error, the others go on).  Exit code 2 for bad input."""
+
+
+def register(sub) -> None:
+    p = sub.add_parser("diagnose", help="find which physics the nominal model leaves out of a recording",
+                       description="Fit the nominal model, locate where it misses the recording beyond noise, "
+                                   "name the missing effect from the vocabulary with its evidence, model it "
+                                   "(refit with the effect switched on) and show the validation fit improve; "
+                                   "'nothing is missing' when no effect passes the test.",
+                       epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("recordings", metavar="RECORDING", nargs="+",
+                   help="pneusim-recording/1 file(s) (.csv or .mat) or folder(s) of them")
+    p.add_argument("--rig", help="rig name (paper1-mre, paper2-enfield) or rig file (.toml); default: the "
+                                 "recording's metadata")
+    p.add_argument("--effect", action="append", metavar="NAME",
+                   help="consider only these vocabulary effects (repeatable; default all)")
+    p.add_argument("--validation-fraction", type=float, default=0.3, metavar="F",
+                   help="final fraction kept for validation, never fitted (default 0.3)")
+    p.add_argument("--max-refits", type=int, default=3, metavar="K",
+                   help="leading candidates confirmed by a whole refit (default 3)")
+    p.add_argument("--json", metavar="OUT.json", help="write the JSON result (one recording)")
+    p.add_argument("--report", metavar="DIR", help="write the report folder (open DIR/index.html); for "
+                                                   "several recordings, the folder of all reports and the summary")
+    p.add_argument("--dask", metavar="ADDRESS", default=None,
+                   help="several recordings: a Dask scheduler (tcp://HOST:PORT) or 'local'")
+    p.add_argument("--workers", metavar="N", type=int, default=None,
+                   help="several recordings: local processes or Dask workers (default: CPU count; 0: in-process)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..errors import PneusimError
+    from ..model.effects import EFFECTS
+    from .common import output_file, output_folder
+
+    for name in args.effect or []:
+        if name not in EFFECTS:
+            raise PneusimError(f"--effect {name}: unknown effect; expected one of: {', '.join(EFFECTS)}")
+    if args.workers is not None and args.workers < 0:
+        raise PneusimError(f"--workers must be >= 0, got {args.workers}")
+    if args.max_refits < 0:
+        raise PneusimError(f"--max-refits must be >= 0, got {args.max_refits}")
+    if args.rig:
+        from ..rig import load_rig
+
+        load_rig(args.rig)  # an unknown rig is reported before any work
+    from ..diagnosis.batch import expand_recordings
+
+    files = expand_recordings(args.recordings)
+    options = {"effects": args.effect, "validation_fraction": args.validation_fraction,
+               "max_refits": args.max_refits}
+    many = len(files) > 1 or any(__import__("pathlib").Path(r).is_dir() for r in args.recordings)
+    if many:
+        if args.json:
+            raise PneusimError("--json writes one recording's result; with several recordings give --report DIR "
+                               "(each result is DIR/STEM.json, the table DIR/summary.csv)")
+        if not args.report:
+            raise PneusimError("several recordings need --report DIR for their results and the summary table")
+        out = output_folder(args.report, "--report")
+        from ..diagnosis.batch import diagnose_many
+
+        rows = diagnose_many(files, out, args.rig, workers=args.workers, dask=args.dask,
+                             progress=not args.quiet, **options)
+        failed = [r for r in rows if r["status"] != "ok"]
+        for r in rows:
+            state = r["findings"] if r["status"] == "ok" else f"FAILED: {r['error']}"
+            print(f"{r['recording']}: {state}")
+        print(f"wrote {out}/summary.csv and summary.md: {len(rows)} recordings, {len(failed)} failed")
+        return 1 if failed and len(failed) == len(rows) else 0
+    if args.json:
+        output_file(args.json, "--json", (".json",))
+    if args.report:
+        output_folder(args.report, "--report")
+    from ..diagnosis import diagnose
+
+    result = diagnose(files[0], args.rig, progress=not args.quiet, **options)
+    print(result.summary())
+    if args.json:
+        result.write_json(args.json)
+        print(f"wrote {args.json}")
+    if args.report:
+        from ..diagnosis.report import write_report
+
+        print(f"wrote {write_report(result, args.report)}")
+    return 0

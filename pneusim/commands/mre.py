@@ -1,0 +1,72 @@
+"""``pneusim mre``: run the mixed-reality environment of an MRE file (controller, online identifiers, plant)."""
+
+from __future__ import annotations
+
+import sys
+
+from ..errors import PneusimError
+from .common import DURATION, output_folder
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "mre", help="run controller, online identifiers and a plant in one real-time loop",
+        description="Run an MRE file (see scenarios/README.md): the controller and the online identifiers in one "
+                    "loop at the rig's sample time, against a simulated, replayed, networked (UDP) or real (NI DAQ) "
+                    "plant. The recording is written row by row to OUT/recording.csv; Ctrl-C, a fault or too many "
+                    "overruns stop the loop with the valve at its null and everything so far on disk. A report "
+                    "(identified transfer functions, h-step predictions, coefficient traces, timing) follows.")
+    p.add_argument("file", metavar="FILE", help="MRE file (.toml), e.g. scenarios/mre-paper1.toml")
+    p.add_argument("--plant", metavar="PLANT", default=None,
+                   help="sim (the simulator), replay:FILE (a recording played back: open loop), udp:HOST:PORT "
+                        "(a rig server, see pneusim serve-rig) or nidaqmx (the real rig through the rig file's "
+                        "[daq] section); default: the file's mre.plant")
+    p.add_argument("--duration", type=DURATION, default=None, metavar="S", help="duration in s (default: the file's)")
+    mode = p.add_mutually_exclusive_group()
+    mode.add_argument("--realtime", dest="mode", action="store_const", const="realtime",
+                      help="pace the loop by the clock at the rig's sample time")
+    mode.add_argument("--fast", dest="mode", action="store_const", const="fast",
+                      help="run as fast as possible (rehearsal; same components and results)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--no-status", action="store_true", help="no live status line")
+    p.add_argument("--no-report", action="store_true", help="skip the report (recording and summary only)")
+    p.set_defaults(func=run, mode=None)
+
+
+def run(args) -> int:
+    from ..mre.plants import parse_plant
+    from ..mre.run import run_mre
+    from ..mre.scenario import load_mre
+
+    spec = load_mre(args.file)
+    if args.plant is not None:
+        parse_plant(args.plant)
+    out = output_folder(args.out, "--out")
+    mr = run_mre(spec, out, plant=args.plant, mode=args.mode, duration_s=args.duration,
+                 status=not args.no_status and sys.stderr.isatty(), report=not args.no_report)
+    s = mr.summary
+    tm = s["timing"]
+    print(f"{s['name']}: {s['samples']}/{s['samples_planned']} samples, plant {s['plant']}, {s['mode']}, "
+          f"stopped: {s['stop_reason']}")
+    if tm["lateness_s"]:
+        late = tm["lateness_s"]
+        print(f"lateness p50 {late['p50'] * 1e3:.3f} ms, p99 {late['p99'] * 1e3:.3f} ms, max {late['max'] * 1e3:.3f} "
+              f"ms; overruns {tm['overruns']}; late > half a sample {tm['late_half_sample']} "
+              f"({tm['late_half_sample_percent']:.3g} %)")
+    if tm["compute_s"]:
+        print(f"computation per sample: p50 {tm['compute_s']['p50'] * 1e3:.3f} ms, "
+              f"p99 {tm['compute_s']['p99'] * 1e3:.3f} ms")
+    for key, value in s["plant_counts"].items():
+        if key != "rtt_s":
+            print(f"plant {key}: {value}")
+    for name, mdl in s["identified"].items():
+        print(f"{name}: {mdl['transfer_function']}")
+    print(f"written: {out / 'recording.csv'}, summary.json, coefficients.npz"
+          + ("" if args.no_report else ", report.md"))
+    if s["stop_reason"].startswith("interrupted"):
+        print("interrupted: the valve was sent to its null; the recording holds every sample taken", file=sys.stderr)
+        return 130
+    if s["stop_reason"] != "completed":
+        raise PneusimError(f"the run stopped early ({s['stop_reason']}: {s['error']}); the valve was sent to its "
+                           f"null and the {s['samples']} samples taken are in {out / 'recording.csv'}")
+    return 0

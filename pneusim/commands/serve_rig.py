@@ -1,0 +1,55 @@
+"""``pneusim serve-rig``: serve a simulated rig over UDP, as a separate real-time target for ``pneusim mre``."""
+
+from __future__ import annotations
+
+import sys
+
+from .common import NOISE_SCALE, SEED, add_rig_arguments, number_type, parse_effects, rig_with_overrides
+
+PORT = number_type("a UDP port in 1..65535", 1, 65535, integer=True)
+WATCHDOG = number_type("a time in s > 0", 0.0, low_included=False)
+SESSIONS = number_type("a whole number >= 1", 1, integer=True)
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "serve-rig", help="serve a simulated rig over UDP (for pneusim mre --plant udp:HOST:PORT)",
+        description="Run the simulated rig in this process and answer one UDP datagram per sample: a command "
+                    "(sequence number, timestamp) in, the next measurement out. Lost and late datagrams are "
+                    "counted; if the loop goes silent for longer than --watchdog the valve is driven to its null "
+                    "and held until the next session. Ctrl-C stops the server.")
+    add_rig_arguments(p, rig_required=True)
+    p.add_argument("--port", type=PORT, required=True, help="UDP port to listen on")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
+    p.add_argument("--watchdog", type=WATCHDOG, default=0.1, metavar="S",
+                   help="silence in s after which the valve goes to its null (default 0.1)")
+    p.add_argument("--seed", type=SEED, default=0, help="seed of the sensor noise (default 0)")
+    p.add_argument("--noise-scale", type=NOISE_SCALE, default=1.0, metavar="F", help="sensor noise scale (default 1)")
+    p.add_argument("--sessions", type=SESSIONS, default=None, metavar="N",
+                   help="exit after N sessions have ended (default: serve until Ctrl-C)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..mre.udp import RigServer
+    from ..plant import SimulatedPlant
+
+    rig = rig_with_overrides(args.rig, args.param)
+    plant = SimulatedPlant(rig, parse_effects(args.effect), seed=args.seed, noise_scale=args.noise_scale)
+    server = RigServer(plant, args.host, args.port, watchdog_s=args.watchdog, null_V=float(rig.params["valve_null_V"]))
+    host, port = server.address
+    print(f"serve-rig: {rig.name} on udp {host}:{port}, sample time {rig.sample_time_s:g} s, watchdog "
+          f"{args.watchdog:g} s; Ctrl-C stops", flush=True)
+    try:
+        server.serve(max_sessions=args.sessions)
+    except KeyboardInterrupt:
+        print("serve-rig: stopped", file=sys.stderr)
+    finally:
+        server.close()
+    st = server.stats
+    for event in st.events:
+        print(f"serve-rig: {event}")
+    print(f"serve-rig: sessions {st.sessions}, commands {st.commands}, lost commands {st.lost_commands}, "
+          f"late commands {st.late_commands}, watchdog trips {st.watchdog_trips}, valve at {server.valve_V:g} V",
+          flush=True)
+    return 0

@@ -1,0 +1,298 @@
+"""Name the physics left out: screen every vocabulary effect, confirm the leading ones by refits.
+
+**Screening (ranking).** For each candidate effect (each leakage path, each fixed transport delay
+of a scan, every other effect of the vocabulary) the multiple-shooting problem of the fit is built
+with the effect switched on, started at the fitted nominal optimum (parameters and segment states)
+with the effect at a small value, and a few trust-region steps are taken on the estimation part
+(or its first :data:`SCREEN_SAMPLES` samples).  The drop of the noise-normalised residual sum of
+squares (continuity defects included as in the fit) is the candidate's likelihood gain: a
+Lagrange-multiplier-like score of what switching the effect on can explain, in the units of the
+sensor noise.  A transport delay has no gradient; it is scanned over fixed delays instead.
+
+**Confirmation (test).** The leading candidates are refitted with the whole fit (effect and
+nominal parameters together, warm-started from the nominal fit).  A candidate is kept when both
+hold:
+
+1. *estimation part*: the Bayesian information criterion drops,
+   ``N ln(C0 / C1) > k ln N`` (``C`` the residual sum of squares in noise units, ``N`` residuals,
+   ``k`` added parameters);
+2. *validation part* (never fitted): the position fit improves by more than noise explains,
+   ``fit1 - fit0 > max(0.5, F)`` points, where ``F = 100 sigma sqrt(N_val) / ||y - mean(y)||`` is
+   the fit that white sensor noise alone takes away, and the validation error ``100 - fit``
+   shrinks by at least 10 %.
+
+The kept candidate with the best validation fit is the first finding; the next candidates are then
+tried on top of it, by the same test against the model with the findings so far.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import PneusimError, SolverError
+from ..fit import EFFECT_FREE, fit_recording, noise_std_estimate
+from ..fit.parameters import SEARCHED, parameter_bounds, parameter_scale
+from ..fit.shooting import FitData, ShootingProblem
+from ..fit.stages import trust_region
+from ..model import ActuatorModel, make_effect
+
+__all__ = ["Candidate", "candidate_list", "screen", "refit", "noise_levels", "estimation_cost",
+           "validation_noise_points", "passes_test", "SCREEN_SAMPLES"]
+
+#: screening uses at most this many estimation samples (the start of the estimation part)
+SCREEN_SAMPLES = 4000
+#: trust-region evaluations per screened candidate
+SCREEN_EVALUATIONS = 6
+#: continuity weight of the screening problem (as in the fit's trust region)
+DEFECT_WEIGHT = 1e4
+#: transport delays scanned, s (those of at least one sample and below 0.2 s)
+DELAY_SCAN_S = (0.005, 0.01, 0.02, 0.04, 0.08)
+
+
+@dataclass
+class Candidate:
+    """A candidate effect: its vocabulary name, the effect to switch on and the parameters to free."""
+
+    name: str
+    label: str
+    effect: object
+    free: list = field(default_factory=list)
+
+    @property
+    def n_added(self) -> int:
+        return max(1, len(self.free)) if self.name != "transport_delay" else 1
+
+
+def candidate_list(rig, sample_time_s: float, names=None) -> list[Candidate]:
+    """The screened variants of every vocabulary effect (``names``: restrict to these effects).
+
+    Small starting values: the effect is nearly absent, so the screening starts where the nominal fit
+    ended.  The valve's spool lag starts at 25 Hz (a spool far faster than the recording cannot be
+    seen), heat transfer at a time constant of 1 s, supply droop at a conductance 4 times the
+    valve's and a supply volume of 0.5 l.
+    """
+    from ..model.effects import EFFECTS
+
+    names = list(EFFECTS) if names is None else list(names)
+    for name in names:
+        if name not in EFFECTS:
+            raise PneusimError(f"unknown effect {name!r}; expected one of: {', '.join(EFFECTS)}")
+    out = []
+    supply = float(rig.params["supply_Pa"])
+    conductance = float(rig.params["valve_sonic_conductance_m3_per_s_Pa"])
+
+    def free_of(name):
+        return [p for p in EFFECT_FREE.get(name, ()) if p not in SEARCHED]
+
+    for name in names:
+        if name == "leakage":
+            for label, opts in (("leakage (internal, A<->B)", {"kind": "internal"}),
+                                ("leakage (chamber A to atmosphere)", {"kind": "external", "chamber": "a"}),
+                                ("leakage (chamber B to atmosphere)", {"kind": "external", "chamber": "b"})):
+                out.append(Candidate(name, label, make_effect(name, conductance_kg_per_s_Pa=1e-11, **opts),
+                                     free_of(name)))
+        elif name == "transport_delay":
+            for d in DELAY_SCAN_S:
+                if d >= 0.99 * sample_time_s:
+                    out.append(Candidate(name, f"transport delay {d * 1e3:g} ms", make_effect(name, delay_s=d), []))
+        elif name == "valve_deadband":
+            out.append(Candidate(name, name, make_effect(name, deadband_V=0.02), free_of(name)))
+        elif name == "valve_offset":
+            out.append(Candidate(name, name, make_effect(name, offset_V=0.0), free_of(name)))
+        elif name == "valve_dynamics":
+            out.append(Candidate(name, name, make_effect(name, natural_frequency_Hz=25.0, damping=0.7), free_of(name)))
+        elif name == "heat_transfer":
+            out.append(Candidate(name, name, make_effect(name, time_constant_s=1.0,
+                                                         wall_temperature_K=float(rig.params["supply_temperature_K"])),
+                                 free_of(name)))
+        elif name == "friction_asymmetry":
+            out.append(Candidate(name, name, make_effect(name, retract_factor=1.0), free_of(name)))
+        elif name == "supply_pressure_droop":
+            out.append(Candidate(name, name, make_effect(name, supply_volume_m3=5e-4,
+                                                         supply_conductance_m3_per_s_Pa=4.0 * conductance,
+                                                         regulator_Pa=supply), free_of(name)))
+        elif name == "external_load":
+            out.append(Candidate(name, name, make_effect(name, force_N=0.0, stiffness_N_per_m=0.0), free_of(name)))
+        elif name == "pressure_dependent_friction":
+            values = {}
+            cls = EFFECTS[name]
+            if "pressure_coefficient" in cls.parameters:
+                values["pressure_coefficient"] = 0.05
+            out.append(Candidate(name, name, make_effect(name, **values), free_of(name)))
+        else:  # an effect added to the vocabulary later: its defaults
+            out.append(Candidate(name, name, make_effect(name), free_of(name)))
+    return out
+
+
+# ------------------------------------------------------------------------------------------ noise
+def noise_levels(recording, rig) -> dict:
+    """Sensor noise std per measured signal: the rig file's ``[sensors]``, else an estimate from the data
+    (the same rule as the fit)."""
+    out = {}
+    signals = {"position_m": recording.position_m}
+    if recording.has_pressures:
+        signals.update(pressure_a_Pa=recording.pressure_a_Pa, pressure_b_Pa=recording.pressure_b_Pa)
+    for name, values in signals.items():
+        from_rig = float(rig.params.get("position_noise_std_m" if name == "position_m" else "pressure_noise_std_Pa", 0.0))
+        floor = rig.stroke_m * 1e-5 if name == "position_m" else 20.0
+        out[name] = max(from_rig if from_rig > 0 else noise_std_estimate(values), floor)
+    return out
+
+
+def estimation_cost(fit, noise: dict) -> tuple[float, int]:
+    """``(C, N)``: residual sum of squares of a fit's estimation part in noise units, and the number of
+    residuals (from the fit's residual rms per signal)."""
+    rec = fit.recording
+    cost, count = 0.0, 0
+    for name, rms in fit.sigma.items():
+        values = getattr(rec, name)[:fit.n_estimation]
+        n = int(np.sum(np.isfinite(values)))
+        cost += n * (float(rms) / noise[name]) ** 2
+        count += n
+    return cost, count
+
+
+def validation_noise_points(recording, n_est: int, noise: dict) -> float:
+    """Fit percentage points that white sensor noise alone takes from a perfect model on the validation part."""
+    y = recording.position_m[n_est:]
+    den = float(np.linalg.norm(y - y.mean()))
+    return 100.0 * noise["position_m"] * math.sqrt(y.size) / den if den > 0 else float("inf")
+
+
+def passes_test(cost0: float, cost1: float, n: int, k: int, fit0: float, fit1: float, floor_points: float) -> tuple[bool, float, str]:
+    """The keep test of the module docstring; returns ``(kept, threshold_points, reason)``."""
+    bic_gain = n * math.log(max(cost0, 1e-300) / max(cost1, 1e-300)) - k * math.log(n)
+    threshold = max(0.5, floor_points)
+    err0, err1 = 100.0 - fit0, 100.0 - fit1
+    if not (math.isfinite(fit1) and math.isfinite(cost1)):
+        return False, threshold, "refit failed to give a finite fit"
+    if bic_gain <= 0:
+        return False, threshold, f"estimation: BIC does not drop (N ln(C0/C1) - k ln N = {bic_gain:.1f})"
+    if fit1 - fit0 <= threshold:
+        return False, threshold, (f"validation: +{fit1 - fit0:.2f} points, not above the noise threshold "
+                                  f"{threshold:.2f}")
+    if err1 > 0.9 * err0:
+        return False, threshold, "validation: error shrinks by less than 10 %"
+    return True, threshold, (f"BIC gain {bic_gain:.0f} on the estimation part; validation +{fit1 - fit0:.2f} points "
+                             f"> {threshold:.2f}")
+
+
+# --------------------------------------------------------------------------------------- screening
+def _warm_states(fit, pb: ShootingProblem, params: np.ndarray, recording) -> np.ndarray:
+    model = pb.model
+    values = dict(zip(model.param_names, params))
+    shared = [(i, fit.model.state_names.index(s)) for i, s in enumerate(model.state_names)
+              if s in fit.model.state_names]
+    x_lo, x_hi = pb.state_bounds()
+    out = np.zeros((pb.n_segments, pb.n))
+    for j, k in enumerate(pb.starts):
+        old = fit.estimation_states[k]
+        x = model.initial_state(None, float(old[0]), float(recording.valve_cmd_V[k]), params=values,
+                                pressures_Pa=(float(old[2]), float(old[3])))
+        for i, i_old in shared:
+            x[i] = old[i_old]
+        out[j] = np.clip(x, x_lo, x_hi)
+    return out
+
+
+def _problem(fit, recording, effects, free_extra, noise, samples):
+    """The shooting problem of ``fit``'s nominal free parameters plus ``free_extra`` with ``effects`` on,
+    over the first ``samples`` estimation samples, started at the fit's optimum."""
+    rig = fit.rig
+    model = ActuatorModel(effects)
+    p_data_sheet = model.param_vector(rig)
+    p = p_data_sheet.copy()
+    fitted = dict(zip(fit.model.param_names, np.asarray(fit.params_vector, float)))
+    for i, name in enumerate(model.param_names):
+        if name in fitted:
+            p[i] = fitted[name]
+    free = [n for n in fit.free if n in model.param_names] + [n for n in free_extra if n not in fit.free]
+    index = [model.param_names.index(n) for n in free]
+    scales = np.array([parameter_scale(n, p_data_sheet[i]) for n, i in zip(free, index)])
+    bounds = np.array([parameter_bounds(n, p_data_sheet[i]) for n, i in zip(free, index)])
+    lower, upper = bounds[:, 0] / scales, bounds[:, 1] / scales
+    theta = np.clip(p[index] / scales, lower, upper)
+    stop = int(samples)
+    signals = {"position_m": (recording.position_m[:stop], noise["position_m"])}
+    if recording.has_pressures:
+        for name in ("pressure_a_Pa", "pressure_b_Pa"):
+            signals[name] = (getattr(recording, name)[:stop], noise[name])
+    data = FitData(recording.time_s[:stop], recording.valve_cmd_V[:stop], float(recording.valve_cmd_V[0]), signals)
+    seg = int(fit.solver.get("segment_samples", 50))
+    pb = ShootingProblem(model, p, free, scales, data, rig.stroke_m, seg, model.command_delay_s(), 1e-6, 2)
+    x_lo, x_hi = pb.state_bounds()
+    lo = np.concatenate([lower, np.tile(x_lo / pb.x_scale, pb.n_segments)])
+    hi = np.concatenate([upper, np.tile(x_hi / pb.x_scale, pb.n_segments)])
+    v0 = pb.join(theta, _warm_states(fit, pb, p, recording))
+    return pb, v0, lo, hi, free
+
+
+def _total_cost(pb, v) -> float:
+    e = pb.evaluate(v, derivatives=False)
+    if not e["ok"]:
+        return float("inf")
+    return float(np.dot(e["r"], e["r"]) + DEFECT_WEIGHT ** 2 * np.dot(e["g"], e["g"]))
+
+
+def screen(fit, recording, candidate: Candidate | None, noise: dict, samples: int | None = None,
+           evaluations: int = SCREEN_EVALUATIONS) -> dict:
+    """Screen one candidate (``None``: the nominal model, evaluated only).
+
+    Returns ``{"cost": C after the steps, "cost_start": C at the start, "parameters": {...}, "seconds"}``.
+    """
+    started = time.perf_counter()
+    stop = min(fit.n_estimation, samples or SCREEN_SAMPLES)
+    effects = [] if candidate is None else [candidate.effect]
+    extra = [] if candidate is None else candidate.free
+    pb, v0, lo, hi, free = _problem(fit, recording, effects, extra, noise, stop)
+    try:
+        cost_start = _total_cost(pb, v0)
+        if candidate is None or evaluations <= 0:
+            return {"cost": cost_start, "cost_start": cost_start, "parameters": {},
+                    "seconds": time.perf_counter() - started}
+        v, _, info = trust_region(pb, v0, lo, hi, max_evaluations=evaluations, defect_weight=DEFECT_WEIGHT)
+        cost = _total_cost(pb, v)
+        theta, _ = pb.split(v)
+        p = pb.params_of(theta)
+        params = {n: float(p[pb.model.param_names.index(n)]) for n in candidate.free}
+        return {"cost": cost, "cost_start": cost_start, "parameters": params, "seconds": time.perf_counter() - started}
+    finally:
+        pb.close()
+
+
+def refit(recording, rig, effects, warm, free_extra=None):
+    """The whole fit with ``effects`` switched on, warm-started from the fit ``warm``."""
+    try:
+        return fit_recording(recording, rig, effects, warm_start=warm, quiet=True)
+    except TypeError:  # a fit without warm starts: start from the warm fit's rig values
+        return fit_recording(recording, warm.rig_, effects, starts=1)
+
+
+def effect_parameters(fit, effect_name: str) -> tuple[dict, dict]:
+    """The fitted parameters of ``effect_name`` in ``fit`` (without the prefix), with standard errors;
+    options (leak path, kind) as strings."""
+    values, errors = {}, {}
+    for e in fit.effects_:
+        if e.name != effect_name:
+            continue
+        for k, v in e.option_values.items():
+            if effect_name == "leakage" and k == "chamber" and e.option_values.get("kind") == "internal":
+                continue
+            if effect_name == "external_load" and k == "kind":
+                continue
+            values[k] = v
+        for k, v in e.values.items():
+            q = f"{e.name}.{k}"
+            if q in fit.parameters or effect_name == "transport_delay":
+                values[k] = float(v)
+                p = fit.parameters.get(q)
+                errors[k] = (p.std if p is not None and math.isfinite(p.std) else None)
+    return values, errors
+
+
+def is_solver_failure(exc: Exception) -> bool:
+    return isinstance(exc, (PneusimError, SolverError, FloatingPointError, np.linalg.LinAlgError, ValueError))

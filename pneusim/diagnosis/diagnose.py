@@ -1,0 +1,315 @@
+"""``diagnose(recording)``: locate the mismatch, name the physics left out, model it, show the fit improve.
+
+Steps (each in its own module):
+
+1. **nominal fit** -- the rig's free parameters (:data:`pneusim.fit.DEFAULT_FREE`) fitted to the
+   estimation part (the first 70 %); the last 30 % validates and is never fitted;
+2. **locate** (:mod:`.locate`) -- windows where the residual of the fitted nominal model exceeds
+   the sensor noise, tagged with signal and operating condition;
+3. **signatures** (:mod:`.signatures`) -- the vocabulary's signatures as numbers;
+4. **screen and confirm** (:mod:`.candidates`) -- every vocabulary effect screened by its
+   likelihood gain from the nominal optimum, the leading ones refitted (effect and nominal
+   parameters together) and kept only when they pass an information criterion on the estimation
+   part *and* improve the validation fit by more than noise explains; a second effect is then
+   tried on top of the first.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FitError, PneusimError
+from ..fit import fit_recording
+from ..model import make_effect
+from ..recording import Recording, read_recording
+from ..rig import Rig, load_rig
+from . import candidates as cand
+from .locate import locate_mismatch
+from .result import CandidateTrial, DiagnosisResult, Finding
+from .signatures import compute_signatures, evidence_text
+
+__all__ = ["diagnose", "MIN_SAMPLES"]
+
+#: a recording shorter than this cannot be split into estimation and validation parts worth fitting
+MIN_SAMPLES = 500
+
+
+def _progress(enabled, message):
+    if enabled:
+        import sys
+        print(f"diagnose: {message}", file=sys.stderr, flush=True)
+
+
+def _load(recording, rig) -> tuple[Recording, Rig]:
+    if not isinstance(recording, Recording):
+        recording = read_recording(recording)
+    name = str(recording.source or "recording")
+    if rig is None:
+        if not recording.rig:
+            raise PneusimError(f"{name} names no rig in its metadata ('# rig: ...'); give --rig")
+        rig = recording.rig
+    if not isinstance(rig, Rig):
+        rig = load_rig(rig)
+    return recording, rig
+
+
+def _check_input(recording: Recording, rig: Rig, validation_fraction: float) -> int:
+    name = Path(str(recording.source or "recording")).name
+    n = recording.n_samples
+    if n < MIN_SAMPLES:
+        raise PneusimError(f"{name}: {n} samples are too short to diagnose (at least {MIN_SAMPLES}: the fit needs an "
+                           f"estimation part and a validation part it never sees)")
+    if not 0.05 <= validation_fraction <= 0.5:
+        raise PneusimError(f"validation fraction must be in [0.05, 0.5], got {validation_fraction}")
+    n_est = int(round(n * (1.0 - validation_fraction)))
+    noise = cand.noise_levels(recording, rig)
+    y = recording.position_m[n_est:]
+    span = float(np.nanmax(y) - np.nanmin(y))
+    if not span > 20 * noise["position_m"]:
+        raise PneusimError(f"{name}: the piston moves only {span * 1e3:.3f} mm in the validation window "
+                           f"{recording.time_s[n_est]:.2f}-{recording.time_s[-1]:.2f} s (at least "
+                           f"{20 * noise['position_m'] * 1e3:.3f} mm, 20 times the sensor noise, are needed to "
+                           "score a model there)")
+    return n_est
+
+
+def _trajectory(fit) -> np.ndarray:
+    """The fitted model's states at every sample: the estimation part's fitted trajectory, then the
+    free simulation over the validation part."""
+    n = fit.recording.n_samples
+    X = np.full((n, len(fit.model.state_names)), np.nan)
+    if fit.estimation_states is not None:
+        X[:fit.n_estimation] = fit.estimation_states[:fit.n_estimation]
+    X[fit.n_estimation:] = fit.validation["states"]
+    return X
+
+
+def _named(fit) -> dict:
+    X = _trajectory(fit)
+    return {name: X[:, i] for i, name in enumerate(fit.model.state_names)}
+
+
+def _derived(name: str, values: dict, fit) -> dict:
+    """Parameters a user compares with a data sheet, derived from the fitted ones."""
+    est = fit.estimates
+    out = dict(values)
+    if name == "friction_asymmetry" and "retract_factor" in values:
+        fc = est.get("friction_coulomb_N", fit.rig_.params["friction_coulomb_N"])
+        fs = est.get("friction_static_N", fit.rig_.params["friction_static_N"])
+        out.update(coulomb_extend_N=fc, coulomb_retract_N=fc * values["retract_factor"],
+                   static_extend_N=fs, static_retract_N=fs * values["retract_factor"])
+    return out
+
+
+def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 0.3, max_refits: int = 3,
+             max_findings: int = 2, screen_samples: int | None = None, progress: bool = False) -> DiagnosisResult:
+    """Diagnose what physics the nominal model leaves out of ``recording``.
+
+    Parameters
+    ----------
+    recording : Recording or path
+        A ``pneusim-recording/1`` file (CSV or .mat) or a loaded recording.
+    rig : Rig, str or None
+        The rig's data sheet (default: the recording's ``rig`` metadata).
+    effects : sequence of str, optional
+        Vocabulary effects to consider (default: all of ``diagnosis.md``).
+    validation_fraction : float
+        Final fraction of the recording kept for validation (never fitted).
+    max_refits : int
+        Leading candidates confirmed by a whole refit.
+    max_findings : int
+        At most this many findings (effects modelled together).
+    screen_samples : int, optional
+        Estimation samples the screening uses (default :data:`.candidates.SCREEN_SAMPLES`).
+    progress : bool
+        Print one line per stage to standard error.
+
+    Returns
+    -------
+    DiagnosisResult
+        Its ``to_dict()`` is the JSON of ``shared/spec/diagnosis.md``.
+
+    Raises
+    ------
+    PneusimError
+        Unknown rig or effect, a recording too short, a validation window without motion, or a
+        recording the nominal fit cannot start on (one sentence each).
+    """
+    started = time.perf_counter()
+    recording, rig = _load(recording, rig)
+    name = Path(str(recording.source or "recording")).name
+    candidates = cand.candidate_list(rig, recording.sample_time_s, effects)
+    n_est = _check_input(recording, rig, validation_fraction)
+    _progress(progress, f"{name}: nominal fit")
+    try:
+        nominal = fit_recording(recording, rig, validation_fraction=validation_fraction, quiet=True)
+    except TypeError:
+        nominal = fit_recording(recording, rig, validation_fraction=validation_fraction)
+    except FitError as exc:
+        raise FitError(f"the nominal fit cannot start on this recording: {exc}") from None
+    rig_used = nominal.rig
+    t_nominal = time.perf_counter() - started
+    noise = cand.noise_levels(recording, rig_used)
+    states = _named(nominal)
+    windows, _ = locate_mismatch(recording, rig_used, states, noise)
+    signatures = compute_signatures(recording, rig_used, states, states["velocity_m_per_s"])
+    _progress(progress, f"{name}: nominal validation fit {nominal.fit_percent:.2f} %, {len(windows)} mismatch "
+                        f"window(s); screening {len(candidates)} candidates")
+
+    # ---- screening: likelihood gain of each candidate from the nominal optimum
+    base = cand.screen(nominal, recording, None, noise, screen_samples)
+    n_screen = min(nominal.n_estimation, screen_samples or cand.SCREEN_SAMPLES) * (3 if recording.has_pressures else 1)
+    trials: dict[str, CandidateTrial] = {}
+    best_variant: dict[str, tuple[float, cand.Candidate, dict]] = {}
+    delay_scan = []
+    for c in candidates:
+        try:
+            s = cand.screen(nominal, recording, c, noise, screen_samples)
+            gain = base["cost"] - s["cost"]
+        except Exception as exc:  # noqa: BLE001 - a candidate that cannot be integrated is reported, not raised
+            if not cand.is_solver_failure(exc):
+                raise
+            s, gain = {"parameters": {}, "seconds": None, "error": str(exc)}, -math.inf
+        score = gain - c.n_added * math.log(max(n_screen, 2))
+        if c.name == "transport_delay":
+            delay_scan.append((c.effect.values["delay_s"], gain))
+        if c.name not in best_variant or score > best_variant[c.name][0]:
+            best_variant[c.name] = (score, c, s)
+    if delay_scan and "transport_delay" in best_variant:
+        d_best = _refine_delay(delay_scan, recording.sample_time_s)
+        score, c, s = best_variant["transport_delay"]
+        c = cand.Candidate("transport_delay", f"transport delay {d_best * 1e3:.3g} ms",
+                           make_effect("transport_delay", delay_s=d_best), [])
+        s = dict(s, parameters={"delay_s": d_best})
+        best_variant["transport_delay"] = (score, c, s)
+    for eff, (score, c, s) in best_variant.items():
+        ev = evidence_text(eff, signatures)
+        if math.isfinite(score):
+            ev += f"; screening: switching it on ({c.label}) explains {score + c.n_added * math.log(max(n_screen, 2)):.0f} " \
+                  f"of the normalised residual sum of squares {base['cost']:.0f}"
+        trials[eff] = CandidateTrial(eff, score, ev, status="screening failed: " + s["error"] if "error" in s
+                                     else "not refitted", parameters=dict(s.get("parameters", {})),
+                                     seconds=s.get("seconds"))
+    ranked = sorted(best_variant, key=lambda k: -best_variant[k][0])
+    t_screen = time.perf_counter() - started - t_nominal
+    _progress(progress, f"{name}: screening ranks " + ", ".join(f"{k} ({best_variant[k][0]:.0f})" for k in ranked[:5]))
+
+    # ---- confirmation refits of the leading candidates, one at a time against the nominal model
+    cost0, n_res = cand.estimation_cost(nominal, noise)
+    floor = cand.validation_noise_points(recording, nominal.n_estimation, noise)
+    fit0 = nominal.fit_percent
+    refits = {}
+    for eff in [k for k in ranked if best_variant[k][0] > 0][:max(0, max_refits)]:
+        score, c, s = best_variant[eff]
+        trial = trials[eff]
+        effect = _effect_with(c, s)
+        t0 = time.perf_counter()
+        _progress(progress, f"{name}: refit with {c.label}")
+        try:
+            fit1 = cand.refit(recording, rig_used, [effect], nominal)
+        except Exception as exc:  # noqa: BLE001 - a failed refit is reported in the result
+            if not cand.is_solver_failure(exc):
+                raise
+            trial.refitted, trial.status, trial.seconds = True, f"refit failed: {exc}", time.perf_counter() - t0
+            continue
+        cost1, _ = cand.estimation_cost(fit1, noise)
+        kept, thr, reason = cand.passes_test(cost0, cost1, n_res, c.n_added, fit0, fit1.fit_percent, floor)
+        values, _ = cand.effect_parameters(fit1, eff)
+        trial.refitted, trial.kept, trial.status = True, kept, reason
+        trial.fit_percent, trial.improvement_points = fit1.fit_percent, fit1.fit_percent - fit0
+        trial.estimation_cost_drop, trial.threshold = cost0 - cost1, thr
+        trial.parameters, trial.seconds = values, time.perf_counter() - t0
+        refits[eff] = (fit1, c)
+
+    findings, final = [], nominal
+    kept = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
+    if kept:
+        first = kept[0]
+        final = refits[first][0]
+        findings.append(_finding(first, final, fit0, trials[first]))
+        # ---- a second effect on top of the first: the other kept candidates, best first
+        for eff in kept[1:]:
+            if len(findings) >= max_findings:
+                break
+            c = refits[eff][1]
+            effect = _effect_with(c, {"parameters": trials[eff].parameters})
+            t0 = time.perf_counter()
+            _progress(progress, f"{name}: refit with {first} and {eff}")
+            try:
+                fit2 = cand.refit(recording, rig_used, list(final.effects_) + [effect], final)
+            except Exception as exc:  # noqa: BLE001
+                if not cand.is_solver_failure(exc):
+                    raise
+                trials[eff].status += f"; with {first}: refit failed: {exc}"
+                continue
+            c_prev, _ = cand.estimation_cost(final, noise)
+            c2, _ = cand.estimation_cost(fit2, noise)
+            ok, thr, reason = cand.passes_test(c_prev, c2, n_res, c.n_added, final.fit_percent, fit2.fit_percent, floor)
+            trials[eff].status += f"; on top of {first}: {reason}"
+            if ok:
+                findings.append(_finding(eff, fit2, final.fit_percent, trials[eff]))
+                final = fit2
+            else:
+                trials[eff].kept = False
+    test = ("keep a candidate when its refit lowers the BIC on the estimation part (N ln(C0/C1) > k ln N, C the "
+            "residual sum of squares in sensor-noise units) and raises the validation fit by more than "
+            f"max(0.5, F) = {max(0.5, floor):.2f} points, F = {floor:.2f} the fit white sensor noise alone takes "
+            "away, with the validation error at least 10 % smaller")
+    result = DiagnosisResult(
+        recording=name, rig=rig_used.name,
+        validation={"t_start_s": float(recording.time_s[nominal.n_estimation]), "t_end_s": float(recording.time_s[-1])},
+        nominal={"fit_percent": fit0, "parameters": nominal.estimates},
+        mismatch=windows, findings=findings, final_fit_percent=final.fit_percent,
+        candidates=[trials[k] for k in ranked], test=test, seconds=time.perf_counter() - started,
+        timing={"nominal_fit_s": t_nominal, "screening_s": t_screen,
+                "refits_s": time.perf_counter() - started - t_nominal - t_screen},
+        nominal_fit=nominal, final_fit=final, signatures=signatures,
+        fits={k: v[0] for k, v in refits.items()})
+    _progress(progress, f"{name}: findings {', '.join(result.effects) or 'none'}; final fit {final.fit_percent:.2f} % "
+                        f"({result.seconds:.0f} s)")
+    return result
+
+
+def _effect_with(c: "cand.Candidate", screened: dict):
+    """The candidate's effect with its screened parameter values as starting values."""
+    values = {k: v for k, v in c.effect.values.items()}
+    for q, v in screened.get("parameters", {}).items():
+        key = q.split(".", 1)[1] if "." in q else q
+        if key in values and isinstance(v, (int, float)) and math.isfinite(v):
+            values[key] = float(v)
+    if c.name == "leakage":
+        values["conductance_kg_per_s_Pa"] = max(values["conductance_kg_per_s_Pa"], 1e-11)
+    if c.name == "external_load":
+        values["stiffness_N_per_m"] = max(values["stiffness_N_per_m"], 0.0)
+    if c.name == "valve_deadband":
+        values["deadband_V"] = max(values["deadband_V"], 0.0)
+    return make_effect(c.name, **c.effect.option_values, **values)
+
+
+def _finding(eff: str, fit, fit_before: float, trial: CandidateTrial) -> Finding:
+    values, errors = cand.effect_parameters(fit, eff)
+    return Finding(effect=eff, evidence=trial.evidence + f"; refit: {trial.status}", parameters=_derived(eff, values, fit),
+                   fit_percent=fit.fit_percent, improvement_points=fit.fit_percent - fit_before,
+                   standard_errors=errors)
+
+
+def _refine_delay(scan, sample_time_s: float) -> float:
+    """The delay of largest screening gain, refined by a parabola through it and its neighbours in log(delay)."""
+    scan = sorted(scan)
+    d = np.array([s[0] for s in scan])
+    g = np.array([s[1] for s in scan])
+    if not np.isfinite(g).any():
+        return float(d[0])
+    g = np.where(np.isfinite(g), g, -np.inf)
+    k = int(np.argmax(g))
+    best = float(d[k])
+    if 0 < k < d.size - 1 and np.all(np.isfinite(g[k - 1:k + 2])):
+        x = np.log(d[k - 1:k + 2])
+        a, b, _ = np.polyfit(x, g[k - 1:k + 2], 2)
+        if a < 0:
+            best = float(np.exp(np.clip(-b / (2 * a), x[0], x[-1])))
+    return float(max(sample_time_s, round(best / sample_time_s * 10) / 10 * sample_time_s))

@@ -1,0 +1,158 @@
+"""Locate the mismatch: stretches where the nominal model's residual exceeds the sensor noise.
+
+The residual of each measured signal (position, and both chamber pressures when recorded) is
+divided by that sensor's noise standard deviation, estimated from the data's second differences
+(:func:`pneusim.fit.noise_std_estimate`).  Its mean square over a sliding window of ``m`` samples
+is ``chi^2_m / m`` for pure noise; a window is flagged when it exceeds the chi-square quantile at a
+false-alarm probability of ``alpha / (number of windows)`` (Bonferroni over the recording), so a
+recording explained up to noise gives no window.  Neighbouring flagged windows are merged and each
+stretch is tagged with the operating condition during it, computed from the recording alone.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+from .result import MismatchWindow
+
+__all__ = ["operating_conditions", "locate_mismatch", "velocity_estimate"]
+
+#: overall false-alarm probability of a flagged window on a recording explained up to noise
+FALSE_ALARM = 1e-3
+
+
+def velocity_estimate(time_s: np.ndarray, position_m: np.ndarray, window_s: float = 0.03) -> np.ndarray:
+    """Piston velocity from the measured position by a Savitzky-Golay derivative, m/s (N,)."""
+    from scipy.signal import savgol_filter
+
+    dt = float(time_s[1] - time_s[0])
+    w = max(5, int(round(window_s / dt)) | 1)
+    n = position_m.size
+    w = min(w, n if n % 2 else n - 1)
+    if w < 5:
+        return np.gradient(position_m, dt)
+    return savgol_filter(position_m, w, 2, deriv=1, delta=dt)
+
+
+def operating_conditions(recording, rig, velocity_m_per_s: np.ndarray | None = None) -> dict:
+    """Boolean masks (N,) of the operating conditions named in ``diagnosis.md``.
+
+    Thresholds are fractions of the rig's data sheet: speeds of 1 % of the stroke per second count
+    as motion, a command within 2 % of the valve's span of its null is "near null", beyond 40 % a
+    "large opening", 5 % of the stroke from an end is "near an end stop", a chamber above 80 % of
+    supply (absolute) "high pressure", below 1.3 atmospheres "low pressure", and a command change of
+    more than 10 % of the span within the last 50 ms "fast command change".
+    """
+    t = recording.time_s
+    x = recording.position_m
+    u = recording.valve_cmd_V
+    stroke = rig.stroke_m
+    v = velocity_estimate(t, x) if velocity_m_per_s is None else velocity_m_per_s
+    v_moving = 0.01 * stroke
+    null = float(rig.params.get("valve_null_V", 5.0))
+    span = float(rig.params.get("valve_max_V", 10.0) - rig.params.get("valve_min_V", 0.0))
+    dt = float(t[1] - t[0])
+    sign = np.sign(np.where(np.abs(v) > v_moving, v, 0.0))
+    last = np.zeros_like(sign)
+    current = 0.0
+    for k, s in enumerate(sign):  # direction of the latest motion, for reversals
+        if s != 0:
+            current = s
+        last[k] = current
+    reversal = np.zeros(x.size, bool)
+    flips = np.flatnonzero((np.diff(last) != 0) & (last[:-1] != 0)) + 1
+    half = max(1, int(round(0.05 / dt)))
+    for k in flips:
+        reversal[max(0, k - half):k + half] = True
+    du = np.abs(np.diff(u, prepend=u[0]))
+    lookback = max(1, int(round(0.05 / dt)))
+    fast = np.convolve((du > 0.1 * span).astype(float), np.ones(lookback), mode="full")[:x.size] > 0
+    masks = {
+        "extending": v > v_moving,
+        "retracting": v < -v_moving,
+        "holding still": np.abs(v) <= v_moving,
+        "velocity reversal": reversal,
+        "valve near null": np.abs(u - null) < 0.02 * span,
+        "large opening": np.abs(u - null) > 0.4 * span / 2,
+        "near an end stop": (x < 0.05 * stroke) | (x > 0.95 * stroke),
+        "right after a fast command change": fast,
+    }
+    if recording.has_pressures:
+        supply = float(rig.params["supply_Pa"])
+        atm = float(rig.params.get("atmosphere_Pa", 101325.0))
+        pa, pb = recording.pressure_a_Pa, recording.pressure_b_Pa
+        masks["high chamber pressure"] = (pa > 0.8 * supply) | (pb > 0.8 * supply)
+        masks["low chamber pressure"] = (pa < 1.3 * atm) | (pb < 1.3 * atm)
+    return masks
+
+
+def _describe(masks: dict, a: int, b: int) -> str:
+    """The conditions that hold for most of samples ``a:b`` (or the most frequent ones)."""
+    share = {name: float(np.mean(m[a:b])) for name, m in masks.items()}
+    direction = max(("extending", "retracting", "holding still"), key=lambda k: share[k])
+    words = []
+    if share["velocity reversal"] > 0.2:
+        words.append("velocity reversal")
+    words.append(direction)
+    for name in ("valve near null", "large opening", "near an end stop", "high chamber pressure",
+                 "low chamber pressure", "right after a fast command change"):
+        if share.get(name, 0.0) > 0.5:
+            words.append(name)
+    return ", ".join(words)
+
+
+def locate_mismatch(recording, rig, model_states: dict, noise_std: dict, window_s: float | None = None,
+                    max_windows: int = 50) -> tuple[list[MismatchWindow], dict]:
+    """Windows where the residual of a signal exceeds what its sensor noise explains.
+
+    Parameters
+    ----------
+    recording : Recording
+    rig : Rig
+    model_states : dict
+        ``{signal name: model value at every sample (N,)}`` (NaN where the model has none).
+    noise_std : dict
+        ``{signal name: sensor noise standard deviation}`` in the signal's unit.
+    window_s : float, optional
+        Length of the sliding window, s (default: 20 samples or 0.1 s, whichever is longer).
+    max_windows : int
+        At most this many windows are returned, the strongest (by mean normalised square) first
+        in time order.
+
+    Returns
+    -------
+    windows : list of MismatchWindow
+    info : dict
+        ``threshold`` (of the windowed mean square of the normalised residual), ``window_samples``,
+        and per signal the fraction of the recording flagged.
+    """
+    t = recording.time_s
+    dt = float(t[1] - t[0])
+    m = max(20, int(round((window_s or 0.1) / dt)))
+    n = t.size
+    n_windows = max(1, n // m)
+    threshold = float(stats.chi2.ppf(1.0 - FALSE_ALARM / n_windows, m) / m)
+    masks = operating_conditions(recording, rig)
+    found, info = [], {"threshold": threshold, "window_samples": m, "flagged_fraction": {}}
+    measured = {"position_m": recording.position_m}
+    if recording.has_pressures:
+        measured["pressure_a_Pa"] = recording.pressure_a_Pa
+        measured["pressure_b_Pa"] = recording.pressure_b_Pa
+    for name, y in measured.items():
+        yhat = model_states.get(name)
+        sigma = float(noise_std.get(name, 0.0))
+        if yhat is None or not sigma > 0:
+            continue
+        z2 = ((y - yhat) / sigma) ** 2
+        z2 = np.where(np.isfinite(z2), z2, 0.0)
+        mean_sq = np.convolve(z2, np.ones(m) / m, mode="same")
+        flagged = mean_sq > threshold
+        info["flagged_fraction"][name] = float(np.mean(flagged))
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], flagged.astype(int), [0]])))
+        for a, b in zip(edges[::2], edges[1::2]):
+            found.append(MismatchWindow(float(t[a]), float(t[min(b, n) - 1]), name, _describe(masks, a, b),
+                                        float(np.max(mean_sq[a:b]))))
+    found.sort(key=lambda w: -w.score)
+    found = sorted(found[:max_windows], key=lambda w: (w.t_start_s, w.signal))
+    return found, info

@@ -1,0 +1,322 @@
+"""The report folder of a diagnosis: ``index.html`` (open this one), ``report.md``, plots, ``diagnosis.json``.
+
+Plots (PNG):
+
+* ``fit.png`` -- measured position (and pressures) against the fitted nominal model and the improved
+  model (all findings switched on), mismatch windows shaded, the validation part marked;
+* ``residuals.png`` -- residuals before (nominal) and after (improved) over time, in units of the
+  sensor noise, with the mismatch windows shaded;
+* ``evidence-N-EFFECT.png`` -- the evidence of each finding, before and after modelling it (residual
+  against direction, pressure difference, position, lag, or the command-velocity map).
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .locate import velocity_estimate
+from .result import DiagnosisResult
+
+__all__ = ["write_report"]
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _states(fit):
+    from .diagnose import _named
+
+    return _named(fit)
+
+
+def _shade(ax, result, signal=None):
+    for w in result.mismatch:
+        if signal is None or w.signal == signal:
+            ax.axvspan(w.t_start_s, w.t_end_s, color="C3", alpha=0.12, lw=0)
+
+
+def plot_fit(result: DiagnosisResult, path) -> Path:
+    plt = _plt()
+    rec = result.nominal_fit.recording
+    t = rec.time_s
+    nom, fin = _states(result.nominal_fit), _states(result.final_fit)
+    signals = [("position_m", rec.position_m, 1e3, "position (mm)")]
+    if rec.has_pressures:
+        signals += [("pressure_a_Pa", rec.pressure_a_Pa, 1e-5, "p_A (bar abs)"),
+                    ("pressure_b_Pa", rec.pressure_b_Pa, 1e-5, "p_B (bar abs)")]
+    fig, axes = plt.subplots(len(signals), 1, sharex=True, figsize=(11, 3.0 * len(signals)), squeeze=False)
+    split = result.validation["t_start_s"]
+    improved = result.findings and result.final_fit is not result.nominal_fit
+    for ax, (name, y, scale, label) in zip(axes[:, 0], signals):
+        ax.plot(t, y * scale, lw=0.8, color="0.2", label="measured")
+        ax.plot(t, nom[name] * scale, lw=0.8, color="C0", label=f"nominal ({result.nominal['fit_percent']:.1f} %)")
+        if improved:
+            ax.plot(t, fin[name] * scale, lw=0.8, color="C2", ls="--",
+                    label=f"with {' + '.join(result.effects)} ({result.final_fit_percent:.1f} %)")
+        _shade(ax, result, name)
+        ax.axvline(split, color="0.4", ls=":", lw=1)
+        ax.set_ylabel(label)
+    axes[0, 0].set_title(f"{result.recording}: measured vs models (validation fit in brackets; validation from "
+                         f"{split:.1f} s, mismatch windows shaded)", fontsize=9)
+    axes[0, 0].legend(loc="upper right", fontsize=8, ncol=3)
+    axes[-1, 0].set_xlabel("time (s)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_residuals(result: DiagnosisResult, path, noise: dict) -> Path:
+    plt = _plt()
+    rec = result.nominal_fit.recording
+    t = rec.time_s
+    nom, fin = _states(result.nominal_fit), _states(result.final_fit)
+    names = ["position_m"] + (["pressure_a_Pa", "pressure_b_Pa"] if rec.has_pressures else [])
+    fig, axes = plt.subplots(len(names), 1, sharex=True, figsize=(11, 2.4 * len(names)), squeeze=False)
+    for ax, name in zip(axes[:, 0], names):
+        y = getattr(rec, name)
+        s = noise[name]
+        ax.plot(t, (y - nom[name]) / s, lw=0.6, color="C0", label="before (nominal)")
+        if result.findings:
+            ax.plot(t, (y - fin[name]) / s, lw=0.6, color="C2", label="after (with findings)")
+        ax.axhline(0, color="0.5", lw=0.5)
+        for k in (-3, 3):
+            ax.axhline(k, color="0.6", lw=0.5, ls=":")
+        _shade(ax, result, name)
+        ax.axvline(result.validation["t_start_s"], color="0.4", ls=":", lw=1)
+        ax.set_ylabel(f"{name}\nresidual / noise")
+    axes[0, 0].legend(loc="upper right", fontsize=8)
+    axes[0, 0].set_title("residuals in units of the sensor noise (dotted: +-3); shaded: mismatch beyond noise",
+                         fontsize=9)
+    axes[-1, 0].set_xlabel("time (s)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def _binned(x, y, bins=20):
+    ok = np.isfinite(x) & np.isfinite(y)
+    x, y = x[ok], y[ok]
+    if x.size < bins * 3:
+        return np.array([]), np.array([])
+    edges = np.quantile(x, np.linspace(0, 1, bins + 1))
+    centres, means = [], []
+    for a, b in zip(edges[:-1], edges[1:]):
+        m = (x >= a) & (x <= b)
+        if m.sum() > 2:
+            centres.append(x[m].mean())
+            means.append(y[m].mean())
+    return np.array(centres), np.array(means)
+
+
+def plot_evidence(result: DiagnosisResult, k: int, path) -> Path:
+    """The evidence of finding ``k``: the signature before (nominal) and after (with the findings up to k)."""
+    plt = _plt()
+    finding = result.findings[k]
+    eff = finding.effect
+    rec = result.nominal_fit.recording
+    t, x, u = rec.time_s, rec.position_m, rec.valve_cmd_V
+    nom = _states(result.nominal_fit)
+    fin = _states(result.final_fit)
+    v = velocity_estimate(t, x)
+    e_nom = v - velocity_estimate(t, np.nan_to_num(nom["position_m"]))
+    e_fin = v - velocity_estimate(t, np.nan_to_num(fin["position_m"]))
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    if eff in ("friction_asymmetry",):
+        for e, c, lab in ((e_nom, "C0", "nominal"), (e_fin, "C2", "with findings")):
+            cx, cy = _binned(v * 1e3, e * 1e3)
+            ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
+        ax.set_xlabel("measured velocity (mm/s)")
+        ax.set_ylabel("velocity residual (mm/s), binned mean")
+        ax.set_title("residual against direction of motion")
+    elif eff == "external_load":
+        for e, c, lab in ((e_nom, "C0", "nominal"), (e_fin, "C2", "with findings")):
+            cx, cy = _binned(x * 1e3, e * 1e3)
+            ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
+        ax.set_xlabel("position (mm)")
+        ax.set_ylabel("velocity residual (mm/s), binned mean")
+        ax.set_title("residual against position")
+    elif eff in ("pressure_dependent_friction", "supply_pressure_droop"):
+        if rec.has_pressures:
+            dp = np.abs(rec.pressure_a_Pa - rec.pressure_b_Pa)
+            xlabel = "|p_A - p_B| measured (bar)"
+        else:
+            dp = np.abs(nom["pressure_a_Pa"] - nom["pressure_b_Pa"])
+            xlabel = "|p_A - p_B| of the nominal model (bar)"
+        for e, c, lab in ((e_nom, "C0", "nominal"), (e_fin, "C2", "with findings")):
+            cx, cy = _binned(dp * 1e-5, np.abs(e) * 1e3)
+            ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel("|velocity residual| (mm/s), binned mean")
+        ax.set_title("residual against the pressure difference across the seal")
+    elif eff in ("transport_delay", "valve_dynamics"):
+        dt = float(t[1] - t[0])
+        du = np.diff(u)
+        lags = np.arange(0, max(3, min(int(0.2 / dt), du.size // 4)))
+        for st, c, lab in ((nom, "C0", "nominal"), (fin, "C2", "with findings")):
+            dr = np.diff(np.where(np.isfinite(st["position_m"]), x - st["position_m"], 0.0))
+            cc = [np.corrcoef(du[:du.size - L], dr[L:])[0, 1] if np.std(dr[L:]) > 0 else np.nan for L in lags]
+            ax.plot(lags * dt * 1e3, cc, "o-", color=c, label=lab, ms=3)
+        ax.axhline(0, color="0.5", lw=0.5)
+        ax.set_xlabel("lag (ms)")
+        ax.set_ylabel("correlation of command and residual increments")
+        ax.set_title("input-residual cross-correlation")
+    elif eff in ("valve_deadband", "valve_offset"):
+        vn = nom["velocity_m_per_s"]
+        vf = fin["velocity_m_per_s"]
+        null = float(result.nominal_fit.rig.params.get("valve_null_V", 5.0))
+        small = np.abs(u - null) < 1.5
+        for vv, c, lab in ((v, "0.2", "measured"), (vn, "C0", "nominal"), (vf, "C2", "with findings")):
+            cx, cy = _binned(u[small], vv[small] * 1e3, bins=30)
+            ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
+        ax.axvline(null, color="0.5", lw=0.5, ls=":")
+        ax.set_xlabel("valve command (V)")
+        ax.set_ylabel("velocity (mm/s), binned mean")
+        ax.set_title("command-velocity map near null")
+    else:  # leakage, heat transfer and anything else: the residual over time
+        s = result.signatures
+        ax.plot(t, (x - nom["position_m"]) * 1e3, lw=0.6, color="C0", label="nominal")
+        ax.plot(t, (x - fin["position_m"]) * 1e3, lw=0.6, color="C2", label="with findings")
+        if rec.has_pressures:
+            ax2 = ax.twinx()
+            ax2.plot(t, (rec.pressure_a_Pa - nom["pressure_a_Pa"]) * 1e-3, lw=0.4, color="C1", alpha=0.6,
+                     label="p_A residual, nominal (kPa)")
+            ax2.plot(t, (rec.pressure_a_Pa - fin["pressure_a_Pa"]) * 1e-3, lw=0.4, color="C4", alpha=0.6,
+                     label="p_A residual, with findings (kPa)")
+            ax2.set_ylabel("pressure residual (kPa)")
+            ax2.legend(loc="lower right", fontsize=7)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel("position residual (mm)")
+        ax.set_title(f"residual over time (creep near null {s.get('creep_mm_s', float('nan')):+.3f} mm/s)")
+    ax.legend(fontsize=8)
+    fig.suptitle(f"{k + 1}. {eff}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def _value(v):
+    if isinstance(v, str):
+        return v
+    return f"{v:.4g}" if v is not None and math.isfinite(v) else "n/a"
+
+
+def _markdown(result: DiagnosisResult, evidence_files) -> str:
+    d = result.to_dict()
+    lines = [f"# Mismatch diagnosis of {result.recording}", "",
+             f"Rig `{result.rig}`; validation window {d['validation']['t_start_s']:.2f}-{d['validation']['t_end_s']:.2f} s "
+             "(never used for fitting).", "",
+             "## Verdict", ""]
+    if not result.findings:
+        lines.append("**Nothing is missing**: no vocabulary effect improved the held-out fit by more than noise explains.")
+    else:
+        lines.append("**Physics left out**: " + ", ".join(f"`{f.effect}`" for f in result.findings) + ".")
+    lines += ["", "| model | validation fit of the position (%) |", "|---|---|",
+              f"| nominal (fitted) | {result.nominal['fit_percent']:.2f} |"]
+    acc = []
+    for f in result.findings:
+        acc.append(f.effect)
+        lines.append(f"| nominal + {' + '.join(acc)} | {f.fit_percent:.2f} (+{f.improvement_points:.2f}) |")
+    lines += ["", "![measured vs nominal vs improved](fit.png)", "", "![residuals before and after](residuals.png)", ""]
+    for k, f in enumerate(result.findings):
+        lines += [f"## Finding {k + 1}: `{f.effect}`", "", f"Evidence: {f.evidence}", "",
+                  "| parameter | estimate | standard error |", "|---|---|---|"]
+        for name, v in f.parameters.items():
+            lines.append(f"| `{name}` | {_value(v)} | {_value(f.standard_errors.get(name))} |")
+        lines += ["", f"![evidence for {f.effect}]({evidence_files[k]})", ""]
+    lines += ["## Where the mismatch is", "",
+              "Windows where the nominal model's residual exceeds what the sensor noise explains "
+              "(windowed mean square above the chi-square quantile of pure noise):", ""]
+    if result.mismatch:
+        lines += ["| from (s) | to (s) | signal | condition |", "|---|---|---|---|"]
+        lines += [f"| {w.t_start_s:.3f} | {w.t_end_s:.3f} | {w.signal} | {w.condition} |" for w in result.mismatch]
+    else:
+        lines.append("none: the nominal model explains the recording up to noise.")
+    lines += ["", "## Candidates screened and tested", "", f"Test: {result.test}.", "",
+              "| effect | screening score | refitted | validation fit (%) | kept | outcome |", "|---|---|---|---|---|---|"]
+    for c in result.candidates:
+        lines.append(f"| {c.effect} | {_value(c.score)} | {'yes' if c.refitted else 'no'} | "
+                     f"{_value(c.fit_percent)} | {'yes' if c.kept else 'no'} | {c.status} |")
+    lines += ["", "## Nominal parameters (fitted)", "", "| parameter | estimate |", "|---|---|"]
+    lines += [f"| `{k}` | {_value(v)} |" for k, v in result.nominal["parameters"].items()]
+    lines += ["", f"Diagnosis time {result.seconds:.0f} s. The JSON result is `diagnosis.json`.", ""]
+    return "\n".join(lines)
+
+
+def _html(markdown: str, title: str) -> str:
+    """A small Markdown-to-HTML conversion of the report's own constructs (headings, tables, images)."""
+    import re
+
+    out = [f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>",
+           "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;line-height:1.4}"
+           "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;font-size:90%}"
+           "img{max-width:100%}code{background:#eee;padding:0 3px}</style></head><body>"]
+    table = []
+
+    def inline(text):
+        text = html.escape(text)
+        text = re.sub(r"\*\*(.+?)\*\*", r"<b>\1</b>", text)
+        return re.sub(r"`(.+?)`", r"<code>\1</code>", text)
+
+    def flush():
+        if table:
+            rows = [r for r in table if not set(r.replace("|", "").strip()) <= set("-")]
+            cells = [[c.strip() for c in r.strip().strip("|").split("|")] for r in rows]
+            out.append("<table><tr>" + "".join(f"<th>{inline(c)}</th>" for c in cells[0]) + "</tr>")
+            for r in cells[1:]:
+                out.append("<tr>" + "".join(f"<td>{inline(c)}</td>" for c in r) + "</tr>")
+            out.append("</table>")
+            table.clear()
+
+    for line in markdown.splitlines():
+        if line.startswith("|"):
+            table.append(line)
+            continue
+        flush()
+        m = re.match(r"!\[(.*)\]\((.*)\)", line)
+        if line.startswith("## "):
+            out.append(f"<h2>{inline(line[3:])}</h2>")
+        elif line.startswith("# "):
+            out.append(f"<h1>{inline(line[2:])}</h1>")
+        elif m:
+            out.append(f"<p><img src='{html.escape(m.group(2))}' alt='{html.escape(m.group(1))}'></p>")
+        elif line.strip():
+            out.append(f"<p>{inline(line)}</p>")
+    flush()
+    out.append("</body></html>")
+    return "\n".join(out)
+
+
+def write_report(result: DiagnosisResult, folder) -> Path:
+    """Write the report folder; returns the path of ``index.html`` (the file to open)."""
+    from .candidates import noise_levels
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    result.write_json(folder / "diagnosis.json")
+    noise = noise_levels(result.nominal_fit.recording, result.nominal_fit.rig)
+    plot_fit(result, folder / "fit.png")
+    plot_residuals(result, folder / "residuals.png", noise)
+    evidence = []
+    for k, f in enumerate(result.findings):
+        name = f"evidence-{k + 1}-{f.effect}.png"
+        plot_evidence(result, k, folder / name)
+        evidence.append(name)
+    md = _markdown(result, evidence)
+    (folder / "report.md").write_text(md)
+    index = folder / "index.html"
+    index.write_text(_html(md, f"diagnosis of {result.recording}"))
+    return index

@@ -1,0 +1,193 @@
+"""The result of a mismatch diagnosis; its JSON form is the contract of ``shared/spec/diagnosis.md``."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+__all__ = ["MismatchWindow", "Finding", "CandidateTrial", "DiagnosisResult"]
+
+
+def _num(value, digits: int = 6):
+    """A JSON number (None for NaN or infinity), rounded to ``digits`` significant digits."""
+    if value is None:
+        return None
+    value = float(value)
+    if not math.isfinite(value):
+        return None
+    return float(f"{value:.{digits}g}")
+
+
+@dataclass
+class MismatchWindow:
+    """A stretch of the recording where the nominal model's residual exceeds the sensor noise.
+
+    ``score`` is the window's mean squared residual divided by the noise variance (1 for pure noise).
+    """
+
+    t_start_s: float
+    t_end_s: float
+    signal: str
+    condition: str
+    score: float = 1.0
+
+    def to_dict(self) -> dict:
+        return {"t_start_s": _num(self.t_start_s), "t_end_s": _num(self.t_end_s), "signal": self.signal,
+                "condition": self.condition}
+
+
+@dataclass
+class Finding:
+    """An effect that the nominal model left out, modelled and kept.
+
+    Attributes
+    ----------
+    effect : str
+        A vocabulary name of ``diagnosis.md``, or ``other``.
+    evidence : str
+        What points to it, as numbers a user can check.
+    parameters : dict
+        Fitted effect parameters (SI units, unit in the name).
+    standard_errors : dict
+        Their standard errors (same units; None where the data do not pin one down).
+    fit_percent : float
+        Validation fit of the position with this finding (and the ones ranked before it) modelled, %.
+    improvement_points : float
+        ``fit_percent`` minus the validation fit without this finding, percentage points.
+    """
+
+    effect: str
+    evidence: str
+    parameters: dict
+    fit_percent: float
+    improvement_points: float
+    standard_errors: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {"effect": self.effect, "evidence": self.evidence,
+                "parameters": {k: (_num(v) if not isinstance(v, str) else v) for k, v in self.parameters.items()},
+                "standard_errors": {k: _num(v) for k, v in self.standard_errors.items()},
+                "fit_percent": _num(self.fit_percent), "improvement_points": _num(self.improvement_points)}
+
+
+@dataclass
+class CandidateTrial:
+    """One candidate effect: its screening evidence and, when refitted, the outcome of the test."""
+
+    effect: str
+    score: float
+    evidence: str
+    refitted: bool = False
+    status: str = "not refitted"
+    fit_percent: float | None = None
+    improvement_points: float | None = None
+    estimation_cost_drop: float | None = None
+    threshold: float | None = None
+    kept: bool = False
+    parameters: dict = field(default_factory=dict)
+    seconds: float | None = None
+
+    def to_dict(self) -> dict:
+        return {"effect": self.effect, "score": _num(self.score), "evidence": self.evidence,
+                "refitted": self.refitted, "status": self.status, "fit_percent": _num(self.fit_percent),
+                "improvement_points": _num(self.improvement_points),
+                "estimation_cost_drop": _num(self.estimation_cost_drop), "threshold": _num(self.threshold),
+                "kept": self.kept,
+                "parameters": {k: (_num(v) if not isinstance(v, str) else v) for k, v in self.parameters.items()},
+                "seconds": _num(self.seconds, 4)}
+
+
+@dataclass
+class DiagnosisResult:
+    """What :func:`pneusim.diagnose` found.
+
+    Attributes
+    ----------
+    recording : str
+        File name of the recording.
+    rig : str
+    validation : dict
+        ``t_start_s``, ``t_end_s`` of the validation part, never used for fitting.
+    nominal : dict
+        ``fit_percent`` (validation fit of the fitted nominal model, %) and ``parameters`` (fitted values, SI).
+    mismatch : list of MismatchWindow
+    findings : list of Finding
+        Ranked, most important first; empty when nothing is missing.
+    final_fit_percent : float
+        Validation fit with every kept finding modelled, %.
+    candidates : list of CandidateTrial
+        Every candidate screened, with the refits tried and their test outcome (a failed refit is
+        reported here with its error, not raised).
+    seconds : float
+        Wall time of the diagnosis.
+    timing : dict
+        ``nominal_fit_s``, ``screening_s``, ``refits_s``: wall time of each stage.
+    nominal_fit, final_fit : FitResult
+        The fits themselves (for plots; not part of the JSON).
+    """
+
+    recording: str
+    rig: str
+    validation: dict
+    nominal: dict
+    mismatch: list
+    findings: list
+    final_fit_percent: float
+    candidates: list = field(default_factory=list)
+    test: str = ""
+    seconds: float = 0.0
+    timing: dict = field(default_factory=dict)
+    nominal_fit: object = None
+    final_fit: object = None
+    signatures: dict = field(default_factory=dict)
+    fits: dict = field(default_factory=dict)
+
+    @property
+    def effects(self) -> list[str]:
+        """Names of the findings, ranked."""
+        return [f.effect for f in self.findings]
+
+    def to_dict(self) -> dict:
+        """The JSON result of ``diagnosis.md``, plus ``candidates`` (every candidate screened, the refits and
+        their test outcome, failures included), ``test`` (the keep rule in words) and ``timing`` (s)."""
+        return {
+            "recording": self.recording,
+            "rig": self.rig,
+            "validation": {"t_start_s": _num(self.validation["t_start_s"]),
+                           "t_end_s": _num(self.validation["t_end_s"])},
+            "nominal": {"fit_percent": _num(self.nominal["fit_percent"]),
+                        "parameters": {k: _num(v) for k, v in self.nominal["parameters"].items()}},
+            "mismatch": [w.to_dict() for w in self.mismatch],
+            "findings": [f.to_dict() for f in self.findings],
+            "final_fit_percent": _num(self.final_fit_percent),
+            "candidates": [c.to_dict() for c in self.candidates],
+            "test": self.test,
+            "timing": {"total_s": _num(self.seconds, 4), **{k: _num(v, 4) for k, v in self.timing.items()}},
+        }
+
+    def write_json(self, path) -> Path:
+        path = Path(path)
+        path.write_text(json.dumps(self.to_dict(), indent=1, allow_nan=False))
+        return path
+
+    def summary(self) -> str:
+        """A few lines for the terminal."""
+        lines = [f"{self.recording} ({self.rig}): nominal validation fit {self.nominal['fit_percent']:.2f} %"]
+        if self.mismatch:
+            lines.append(f"mismatch beyond noise in {len(self.mismatch)} window(s), e.g. "
+                         + "; ".join(f"{w.t_start_s:.2f}-{w.t_end_s:.2f} s {w.signal} ({w.condition})"
+                                     for w in self.mismatch[:3]))
+        else:
+            lines.append("no residual window beyond the sensor noise")
+        if not self.findings:
+            lines.append("findings: none - nothing is missing (no candidate passed the test)")
+        for k, f in enumerate(self.findings, 1):
+            params = ", ".join(f"{n} = {v:.4g}" if not isinstance(v, str) else f"{n} = {v}"
+                               for n, v in f.parameters.items())
+            lines.append(f"{k}. {f.effect}: validation fit {f.fit_percent:.2f} % (+{f.improvement_points:.2f} "
+                         f"points); {params}")
+            lines.append(f"   evidence: {f.evidence}")
+        lines.append(f"final validation fit {self.final_fit_percent:.2f} %; {self.seconds:.0f} s")
+        return "\n".join(lines)

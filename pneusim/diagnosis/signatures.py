@@ -1,0 +1,174 @@
+"""Evidence a user can check: the signatures of ``diagnosis.md`` as numbers.
+
+Every number is computed from the recording and the fitted nominal model's trajectory (the model
+driven by the recorded command, its parameters fitted to the recording), never from metadata:
+
+* ``direction_r`` -- correlation of the velocity residual (measured minus model velocity) with the
+  direction of motion; ``extend_mean_mm_s`` / ``retract_mean_mm_s`` its mean while extending and
+  retracting (friction asymmetry, external load);
+* ``pressure_r`` -- correlation of the squared velocity residual with ``|p_A - p_B|`` (with the
+  valve opening when pressures were not recorded) (pressure-dependent friction, supply droop);
+* ``position_r`` -- correlation of the velocity residual with the position (a spring);
+* ``lag_s`` / ``lag_r`` -- lag of the peak of the cross-correlation between command increments
+  and residual increments (transport delay, valve dynamics: positive lag);
+* ``creep_mm_s`` -- mean speed of the measured piston while the valve is near null and the model
+  is at rest, minus the model's (leakage, valve offset);
+* ``flat_spot_V`` -- half-width of the command band around null in which the measured piston
+  does not move, minus the same band of the model (valve dead band);
+* ``null_shift_V`` -- command at which the measured velocity crosses zero (a line through the
+  small-command samples), minus the model's (valve offset);
+* ``hold_pressure_drift_kPa_s`` -- mean rate of the pressure residual while holding still after a
+  move (heat transfer, leakage), when pressures were recorded;
+* ``long_move_r`` -- correlation of the velocity residual's magnitude with the time the valve has
+  been wide open (supply droop).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .locate import operating_conditions, velocity_estimate
+
+__all__ = ["compute_signatures", "evidence_text"]
+
+
+def _corr(a, b) -> float:
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    ok = np.isfinite(a) & np.isfinite(b)
+    if ok.sum() < 10:
+        return float("nan")
+    a, b = a[ok] - a[ok].mean(), b[ok] - b[ok].mean()
+    den = math.sqrt(float(np.dot(a, a) * np.dot(b, b)))
+    return float(np.dot(a, b) / den) if den > 0 else float("nan")
+
+
+def _band(u_rel, speed, moving):
+    """Half-width of the command band around null in which the piston stays still (90th percentile
+    of |u - null| over the still samples with small commands)."""
+    small = np.abs(u_rel) < 1.0
+    still = small & ~moving
+    go = small & moving
+    if go.sum() < 5:
+        return float("nan")
+    # the smallest commands that do move the piston
+    return float(np.percentile(np.abs(u_rel[go]), 5))
+
+
+def compute_signatures(recording, rig, model_states: dict, velocity_model: np.ndarray) -> dict:
+    """The signature numbers of the nominal model's residual (see the module docstring).
+
+    Parameters
+    ----------
+    recording : Recording
+    rig : Rig
+    model_states : dict
+        ``{state name: model value at every sample (N,)}`` of the fitted nominal model.
+    velocity_model : ndarray (N,)
+        The model's piston velocity, m/s.
+    """
+    t, x, u = recording.time_s, recording.position_m, recording.valve_cmd_V
+    dt = float(t[1] - t[0])
+    stroke = rig.stroke_m
+    null = float(rig.params.get("valve_null_V", 5.0))
+    v_meas = velocity_estimate(t, x)
+    v_model = np.asarray(velocity_model, float)
+    e_v = v_meas - velocity_estimate(t, np.nan_to_num(model_states["position_m"], nan=float(np.nanmean(x))))
+    ok = np.isfinite(model_states["position_m"])
+    masks = operating_conditions(recording, rig, v_meas)
+    moving_thr = 0.01 * stroke
+    out = {}
+    direction = np.sign(v_meas) * (np.abs(v_meas) > moving_thr)
+    out["direction_r"] = _corr(e_v[ok], direction[ok])
+    ext, ret = masks["extending"] & ok, masks["retracting"] & ok
+    out["extend_mean_mm_s"] = float(np.mean(e_v[ext]) * 1e3) if ext.any() else float("nan")
+    out["retract_mean_mm_s"] = float(np.mean(e_v[ret]) * 1e3) if ret.any() else float("nan")
+    if recording.has_pressures:
+        dp = np.abs(recording.pressure_a_Pa - recording.pressure_b_Pa)
+    else:
+        dp = np.abs(model_states["pressure_a_Pa"] - model_states["pressure_b_Pa"])
+    moving = np.abs(v_meas) > moving_thr
+    out["pressure_r"] = _corr((e_v ** 2)[ok & moving], dp[ok & moving])
+    out["position_r"] = _corr(e_v[ok], x[ok])
+    # cross-correlation of command increments with residual increments, lags 0 .. 0.2 s
+    r = np.where(ok, x - np.nan_to_num(model_states["position_m"]), 0.0)
+    du, dr = np.diff(u), np.diff(r)
+    max_lag = max(2, min(int(round(0.2 / dt)), du.size // 4))
+    if np.std(du) > 0 and np.std(dr) > 0:
+        cc = np.array([_corr(du[:du.size - k], dr[k:]) for k in range(max_lag)])
+        k_best = int(np.nanargmax(np.abs(cc))) if np.isfinite(cc).any() else 0
+        out["lag_s"] = k_best * dt
+        out["lag_r"] = float(cc[k_best])
+    else:
+        out["lag_s"], out["lag_r"] = float("nan"), float("nan")
+    near_null = masks["valve near null"] & ok
+    model_still = np.abs(v_model) < moving_thr
+    hold = near_null & model_still
+    out["creep_mm_s"] = (float(np.mean(np.abs(v_meas[hold])) - np.mean(np.abs(v_model[hold]))) * 1e3
+                         if hold.sum() > 10 else float("nan"))
+    u_rel = u - null
+    out["flat_spot_V"] = (_band(u_rel, v_meas, moving) - _band(u_rel, v_model, np.abs(v_model) > moving_thr))
+    small = (np.abs(u_rel) < 1.0) & ok
+    if small.sum() > 20 and np.ptp(u_rel[small]) > 0:
+        a_m = np.polyfit(u_rel[small], v_meas[small], 1)
+        a_s = np.polyfit(u_rel[small], v_model[small], 1)
+        cross_m = -a_m[1] / a_m[0] if a_m[0] != 0 else float("nan")
+        cross_s = -a_s[1] / a_s[0] if a_s[0] != 0 else float("nan")
+        out["null_shift_V"] = float(np.clip(cross_m - cross_s, -5, 5))
+    else:
+        out["null_shift_V"] = float("nan")
+    if recording.has_pressures:
+        still = masks["holding still"] & ok
+        rates = []
+        for name in ("pressure_a_Pa", "pressure_b_Pa"):
+            res = getattr(recording, name) - model_states[name]
+            rate = np.gradient(res, dt)
+            rates.append(float(np.mean(np.abs(rate[still]))) / 1e3 if still.sum() > 10 else float("nan"))
+        out["hold_pressure_drift_kPa_s"] = float(np.nanmean(rates)) if np.isfinite(rates).any() else float("nan")
+    wide = masks["large opening"]
+    open_time = np.zeros(t.size)
+    for k in range(1, t.size):
+        open_time[k] = open_time[k - 1] + dt if wide[k] else 0.0
+    out["long_move_r"] = _corr(np.abs(e_v)[ok & wide], open_time[ok & wide]) if (ok & wide).sum() > 10 else float("nan")
+    return out
+
+
+def _f(value, fmt) -> str:
+    return "n/a" if value is None or not np.isfinite(value) else format(value, fmt)
+
+
+def evidence_text(effect: str, sig: dict) -> str:
+    """The signature numbers that bear on ``effect``, in words."""
+    s = sig
+    if effect == "friction_asymmetry":
+        return (f"velocity residual follows the direction of motion (r = {_f(s['direction_r'], '+.2f')}); mean "
+                f"{_f(s['extend_mean_mm_s'], '+.2f')} mm/s extending, {_f(s['retract_mean_mm_s'], '+.2f')} mm/s retracting")
+    if effect == "external_load":
+        return (f"velocity residual against position r = {_f(s['position_r'], '+.2f')}; mean "
+                f"{_f(s['extend_mean_mm_s'], '+.2f')} mm/s extending, {_f(s['retract_mean_mm_s'], '+.2f')} mm/s retracting")
+    if effect == "pressure_dependent_friction":
+        return f"squared velocity residual grows with |p_A - p_B| (r = {_f(s['pressure_r'], '+.2f')})"
+    if effect == "supply_pressure_droop":
+        return (f"velocity residual grows with time at large opening (r = {_f(s['long_move_r'], '+.2f')}) and "
+                f"with |p_A - p_B| (r = {_f(s['pressure_r'], '+.2f')})")
+    if effect == "transport_delay":
+        return (f"command-residual cross-correlation peaks at a lag of {_f(s['lag_s'] * 1e3, '.0f')} ms "
+                f"(r = {_f(s['lag_r'], '+.2f')})")
+    if effect == "valve_dynamics":
+        return (f"command-residual cross-correlation peaks at a lag of {_f(s['lag_s'] * 1e3, '.0f')} ms "
+                f"(r = {_f(s['lag_r'], '+.2f')}): lag after fast command changes")
+    if effect == "valve_deadband":
+        return f"flat spot of the command-velocity map around null wider than the model's by {_f(s['flat_spot_V'], '+.3f')} V"
+    if effect == "valve_offset":
+        return (f"measured velocity crosses zero {_f(s['null_shift_V'], '+.3f')} V from the model's null; "
+                f"creep near null {_f(s['creep_mm_s'], '+.3f')} mm/s beyond the model")
+    if effect == "leakage":
+        extra = (f"; pressure residual drifts {_f(s['hold_pressure_drift_kPa_s'], '.2f')} kPa/s while holding"
+                 if "hold_pressure_drift_kPa_s" in s else "")
+        return f"creep near null {_f(s['creep_mm_s'], '+.3f')} mm/s beyond the model{extra}"
+    if effect == "heat_transfer":
+        extra = (f"pressure residual drifts {_f(s['hold_pressure_drift_kPa_s'], '.2f')} kPa/s while holding after moves; "
+                 if "hold_pressure_drift_kPa_s" in s else "")
+        return f"{extra}creep after stops {_f(s['creep_mm_s'], '+.3f')} mm/s beyond the model"
+    return ""

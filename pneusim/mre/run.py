@@ -1,0 +1,219 @@
+"""Run an MRE file: build the components, pick the plant and the pacing, record, report.
+
+:func:`run_mre` is what ``pneusim mre`` calls.  Its output folder holds
+
+* ``recording.csv``: the run as a ``pneusim-recording/1`` file, written row by
+  row while the loop runs (plus the extra columns ``lateness_s``, ``latency_s``,
+  ``plant_flag`` and every prediction ``yhat_*``);
+* ``coefficients.npz``: ``theta`` of every estimator after every sample, and the per-sample timing;
+* ``summary.json``: how the run ended, timing statistics, plant counters, identified models;
+* ``report.md`` and its figures (:mod:`pneusim.mre.report`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..errors import PneusimError
+from .clock import make_pacing
+from .loop import LoopResult, StatusLine, row_columns, run_loop, timing_summary
+from .plants import ReplayPlant, parse_plant
+from .recorder import RecordingWriter
+from .scenario import build_components
+
+__all__ = ["run_mre", "MreRun", "make_plant", "prediction_column"]
+
+
+@dataclass
+class MreRun:
+    """What :func:`run_mre` returns: the loop result, the summary written to ``summary.json``, the files."""
+
+    result: LoopResult
+    summary: dict
+    out_dir: Path
+    recording_path: Path
+
+
+def slug(name: str) -> str:
+    """``'RLS ARMA order 4'`` -> ``'rls_arma_order_4'``."""
+    return re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_") or "estimator"
+
+
+def prediction_column(name: str, h: int, unit: str) -> str:
+    """CSV column of the ``h``-step prediction of estimator ``name``, e.g. ``yhat_rls_arma_order_4_h1_cm``."""
+    return f"yhat_{slug(name)}_h{h}_{unit}"
+
+
+def make_plant(choice, rig, effects, *, seed: int, noise_scale: float, mode: str, udp_reply_timeout_s=None,
+               daq_modules=None):
+    """The plant of a parsed ``--plant`` choice."""
+    if choice.kind == "sim":
+        from ..plant import SimulatedPlant
+        return SimulatedPlant(rig, effects, seed=seed, noise_scale=noise_scale)
+    if choice.kind == "replay":
+        from ..recording import read_recording
+        rec = read_recording(choice.path)
+        if not math.isclose(rec.sample_time_s, rig.sample_time_s, rel_tol=1e-9):
+            raise PneusimError(f"--plant replay:{choice.path}: the recording's sample time {rec.sample_time_s:g} s "
+                               f"differs from the rig's {rig.sample_time_s:g} s")
+        return ReplayPlant(rec)
+    if choice.kind == "udp":
+        from .udp import UdpPlant
+        timeout = udp_reply_timeout_s
+        if timeout is None:
+            timeout = 0.5 * rig.sample_time_s if mode == "realtime" else 1.0
+        return UdpPlant(choice.host, choice.port, rig.sample_time_s, reply_timeout_s=timeout)
+    from .daq import DaqPlant
+    return DaqPlant(rig, daq_modules)
+
+
+def run_mre(spec: dict, out_dir, *, plant: str | None = None, mode: str | None = None,
+            duration_s: float | None = None, status: bool = False, report: bool = True,
+            plant_object=None, stop_after: int | None = None, pacing=None) -> MreRun:
+    """Run a checked MRE dict (:func:`pneusim.mre.scenario.load_mre`) and write its folder.
+
+    Parameters
+    ----------
+    plant : str or None
+        ``sim``, ``replay:FILE``, ``udp:HOST:PORT`` or ``nidaqmx`` (default: the file's ``mre.plant``).
+    mode : {'fast', 'realtime'} or None
+        Default: the file's ``mre.mode``.
+    duration_s : float or None
+        Default: the file's ``mre.duration_s``.
+    plant_object : Plant or None
+        A ready plant (tests); overrides ``plant``.
+    stop_after : int or None
+        Inject a fault after this many samples (tests of the stop path).
+    pacing : Pacing or None
+        Overrides the pacing of ``mode`` (the benchmark's plain-sleep pacing).
+    """
+    m = spec["mre"]
+    mode = mode or m["mode"]
+    choice = parse_plant(plant or m["plant"])
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    comp = build_components(spec, duration_s)
+    rig, ts = comp.rig, comp.rig.sample_time_s
+    pl = plant_object if plant_object is not None else make_plant(
+        choice, rig, comp.effects, seed=int(m["seed"]), noise_scale=float(m["noise_scale"]), mode=mode,
+        udp_reply_timeout_s=m["udp_reply_timeout_s"])
+    n = comp.reference.shape[0]
+    if isinstance(pl, ReplayPlant) and pl.remaining < n + comp.n_warm:
+        raise PneusimError(f"--plant {choice.text}: the recording holds {pl.remaining} samples, the run needs "
+                           f"{n + comp.n_warm} (warm-up included); shorten --duration or mre.warmup_s")
+    closed = comp.controller is not None
+    pred_keys = [(name, h) for name, est in comp.estimators.items() for h in est.horizons]
+    pred_cols = [prediction_column(name, h, comp.output_unit) for name, h in pred_keys]
+    if len(set(pred_cols)) != len(pred_cols):
+        raise PneusimError("two identifiers give the same prediction column name; rename one")
+    meta = {"format": "pneusim-recording/1", "sample_time_s": repr(ts), "rig": rig.name,
+            "loop": "closed" if closed else "open",
+            "description": m["title"] or m["name"],
+            "generator": f"pneusim {__version__} mre", "seed": str(m["seed"]),
+            "effects": ";".join(repr(e) for e in comp.effects) or "none",
+            "mre_plant": choice.text if plant_object is None else type(pl).__name__,
+            "mre_mode": mode, "mre_output_unit": comp.output_unit}
+    if getattr(pl, "open_loop", False):
+        meta["mre_plant_note"] = ("open loop: the measurements are played back from the recording; "
+                                  "the loop's commands do not act on them")
+    if closed:
+        meta.update(comp.controller.metadata())
+    rec_path = out / "recording.csv"
+    pacing = pacing or make_pacing(mode, ts)
+    budget = None
+    if pacing.realtime:
+        budget = int(math.floor(float(m["overrun_budget"]) * (n + comp.n_warm)))
+    pl.reset(comp.x0_m, comp.u_init_V, t0_s=-comp.n_warm * ts)
+    writer = RecordingWriter(rec_path, meta, row_columns(closed, pred_cols))
+    try:
+        res = run_loop(pl, comp.reference, comp.controller, comp.estimators, comp.to_output, comp.to_input,
+                       pacing=pacing, n_warm=comp.n_warm, writer=writer,
+                       status=StatusLine(interval_s=float(m["status_interval_s"])) if status else None,
+                       overrun_budget=budget, null_V=float(rig.params["valve_null_V"]), stop_after=stop_after)
+    finally:
+        writer.close()
+        close = getattr(pl, "close", None)
+        if close is not None:
+            close()
+    summary = _summary(spec, res, comp, choice, pl, mode, rec_path, pred_keys, pred_cols)
+    np.savez(out / "coefficients.npz", time_s=np.arange(res.n_samples) * ts,
+             lateness_s=res.lateness_s, latency_s=res.latency_s, compute_s=res.compute_s,
+             **{f"theta_{slug(name)}": th for name, th in res.thetas.items()})
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default) + "\n", encoding="utf-8")
+    run = MreRun(res, summary, out, rec_path)
+    if report and res.n_samples >= 2:
+        from .report import write_report
+        write_report(run, comp, spec)
+    return run
+
+
+def _json_default(x):
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    raise TypeError(type(x))
+
+
+def identified_models(result: LoopResult, estimators: dict) -> dict:
+    """Final ``theta`` of each estimator as ``a1..an``, ``b1..bn`` and the transfer function text (eqs. 9-11)."""
+    out = {}
+    for name, est in estimators.items():
+        th = result.thetas[name]
+        if not th.shape[0]:
+            continue
+        theta = th[-1]
+        n = theta.size // 2
+        a, b = theta[:n], theta[n:]
+        out[name] = {"order": n, "a": a.tolist(), "b": b.tolist(), "theta": theta.tolist(),
+                     "transfer_function": transfer_function_text(a, b)}
+    return out
+
+
+def _term(c: float, power: int, first: bool) -> str:
+    z = "" if power == 0 else ("z" if power == 1 else f"z^{power}")
+    mag = f"{abs(c):.5g}"
+    body = f"{mag} {z}".strip() if z else mag
+    sign = ("-" if c < 0 else "") if first else (" - " if c < 0 else " + ")
+    return sign + body
+
+
+def transfer_function_text(a, b) -> str:
+    """``G(z) = (b1 z^n + ... + bn z) / (z^n + a1 z^(n-1) + ... + an)``, 5 significant digits, as paper 1 prints
+    eqs. 9-11 (the same model as ``B(z^-1)/A(z^-1)`` of eq. 6 up to one sample of delay, see the report)."""
+    n = len(a)
+    num = "".join(_term(b[i], n - i, i == 0) for i in range(n))
+    den = "z" + (f"^{n}" if n > 1 else "") + "".join(_term(a[i], n - 1 - i, False) for i in range(n))
+    return f"G(z) = ({num}) / ({den})"
+
+
+def _summary(spec, res: LoopResult, comp, choice, plant, mode, rec_path, pred_keys, pred_cols) -> dict:
+    from ..scenario.identify import error_stats
+
+    y = comp.to_output(res.position_m)
+    preds = {}
+    for (name, h), col in zip(pred_keys, pred_cols):
+        st = error_stats(y, res.predictions[(name, h)]) if res.n_samples else {}
+        preds[col] = {"estimator": name, "h": h, **st}
+    plant_counts = {}
+    for key in ("lost", "late", "clipped"):
+        if hasattr(plant, key):
+            plant_counts[key] = int(getattr(plant, key))
+    rtt = getattr(plant, "rtt_s", None)
+    if rtt:
+        r = np.asarray(rtt)
+        plant_counts["rtt_s"] = {"p50": float(np.percentile(r, 50)), "p99": float(np.percentile(r, 99)),
+                                 "max": float(r.max())}
+    if hasattr(plant, "commands_V"):
+        plant_counts["commands_logged"] = len(plant.commands_V)
+    return {"name": spec["mre"]["name"], "plant": choice.text, "mode": mode, "pacing": res.pacing,
+            "stop_reason": res.stop_reason, "error": res.error, "valve_to_null": res.valve_to_null,
+            "samples": res.n_samples, "samples_planned": res.n_planned, "recording": str(rec_path.name),
+            "held_samples": int(res.plant_flag.sum()), "timing": timing_summary(res), "plant_counts": plant_counts,
+            "wall_time_s": res.wall_time_s, "identified": identified_models(res, comp.estimators),
+            "predictions": preds}

@@ -1,0 +1,225 @@
+"""Generalisation: models trained on one operating condition, validated on others.
+
+A scenario with ``[[conditions]]`` (schema in ``scenarios/README.md``) trains every identifier on its
+main run, as usual, then re-runs the experiment under each condition (other rig parameters such as the
+supply pressure or a payload mass, another signal such as a larger amplitude) and scores, without
+re-identifying anything:
+
+* every black-box model (ARX, ARMAX, state space, transfer function) simulated on the condition's
+  whole record from estimated initial conditions (MATLAB ``compare``'s default);
+* the fitted physical model, *told* the new condition as a user would be: a known parameter (supply
+  pressure, sample time ...) is set to its new value; a fitted parameter (e.g. the moving mass) is
+  shifted by the known change (``fitted + new - old``: "I added 3 kg"); it then re-runs the
+  condition's experiment from its start without noise.
+
+:func:`evaluate_conditions` returns the numbers; :func:`generalisation_blocks` turns them into report
+blocks and figures.
+"""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+
+from ..simulate import simulate
+from .identify import error_stats
+from .signals import build_experiment, input_signal, output_signal
+
+__all__ = ["evaluate_conditions", "told_rig", "generalisation_blocks"]
+
+_BLACKBOX = ("arx", "armax", "ss", "tf")
+
+
+def told_rig(fitted_rig, true_rig, overrides: dict, fitted_names) -> tuple:
+    """The fitted rig told a new condition: ``(rig, {name: value told})``.
+
+    Parameters
+    ----------
+    fitted_rig : Rig
+        The rig with the physical fit's estimates.
+    true_rig : Rig
+        The training condition's rig (what the user believes the change is relative to).
+    overrides : dict
+        The condition's ``rig_overrides`` (SI, true values).
+    fitted_names : iterable of str
+        Parameters the fit estimated: these are shifted by the change, the others are set.
+    """
+    told = {}
+    for key, value in overrides.items():
+        if key in fitted_names:
+            told[key] = float(fitted_rig.params[key]) + float(value) - float(true_rig.params[key])
+        else:
+            told[key] = float(value)
+    return fitted_rig.with_params(told), told
+
+
+def evaluate_conditions(result, progress: bool = False) -> dict:
+    """Score the trained models of ``result`` (a :class:`~pneusim.scenario.runner.ScenarioResult`) on every
+    ``[[conditions]]`` of its scenario.
+
+    Returns
+    -------
+    dict
+        ``{"training": {identifier: fit % on the validation half}, "conditions": [{"name", "description",
+        "rig_overrides", "told", "n_samples", "rows": [{identifier, kind, fit_percent, mse, ...}],
+        "_t", "_y", "_yhat": {identifier: array}}]}`` (private ``_`` arrays for the figures).
+    """
+    import sysid
+
+    spec, data = result.spec, result.spec["data"]
+    rig, effects = result.rig, result.effects
+    models = [r for r in result.rows if r.get("kind") in _BLACKBOX and r.get("_model") is not None]
+    physical = [r for r in result.rows if r.get("kind") == "physical_fit" and r.get("_fit") is not None]
+    training = {r["identifier"]: r.get("fit_percent") for r in models + physical}
+    out = {"training": training, "conditions": []}
+    for cond in spec.get("conditions", []):
+        crig = rig.with_params(cond["rig_overrides"]) if cond["rig_overrides"] else rig
+        cexp = copy.deepcopy(spec["experiment"])
+        cexp.update(copy.deepcopy(cond["experiment"]))
+        experiment, raw = build_experiment(crig, cexp)
+        if experiment.sample_time_s != crig.sample_time_s:
+            crig = crig.with_params({"sample_time_s": experiment.sample_time_s})
+        sim = simulate(crig, experiment, effects, seed=int(cexp["seed"]), noise_scale=float(cexp["noise_scale"]),
+                       progress=progress)
+        rec = sim.recording
+        y = output_signal(rec.position_m, crig, data)
+        u = input_signal(rec.valve_cmd_V, raw, data)
+        ts = experiment.sample_time_s
+        d = sysid.iddata(y, u, ts)
+        rows, yhats, told = [], {}, {}
+        for r in models:
+            try:
+                yhat = np.asarray(sysid.simulate(r["_model"], d, initial="estimate"), float).ravel()
+                rows.append({"identifier": r["identifier"], "kind": r["kind"], "status": "ok",
+                             "reading": "trained on the main run, not re-identified", **error_stats(y, yhat)})
+                yhats[r["identifier"]] = yhat
+            except Exception as exc:  # noqa: BLE001 - one model failing must not stop the others
+                rows.append({"identifier": r["identifier"], "kind": r["kind"], "status": "failed",
+                             "reason": f"{type(exc).__name__}: {exc}"})
+        for r in physical:
+            fit = r["_fit"]
+            try:
+                trig, told = told_rig(fit.rig_, rig, cond["rig_overrides"], set(fit.parameters))
+                psim = simulate(trig, experiment, fit.effects_, seed=int(cexp["seed"]), noise_scale=0.0)
+                yhat = output_signal(psim.recording.position_m, crig, data)
+                rows.append({"identifier": r["identifier"], "kind": r["kind"], "status": "ok",
+                             "reading": "fitted on the main run, told the condition, experiment re-run",
+                             "told": told, **error_stats(y, yhat)})
+                yhats[r["identifier"]] = yhat
+            except Exception as exc:  # noqa: BLE001
+                rows.append({"identifier": r["identifier"], "kind": r["kind"], "status": "failed",
+                             "reason": f"{type(exc).__name__}: {exc}"})
+        out["conditions"].append({"name": cond["name"], "description": cond.get("description", ""),
+                                  "rig_overrides": dict(cond["rig_overrides"]),
+                                  "experiment": dict(cond["experiment"]), "told": told,
+                                  "n_samples": int(rec.n_samples), "rows": rows,
+                                  "_t": rec.time_s, "_y": y, "_yhat": yhats, "_recording": rec})
+    return out
+
+
+def clean_generalisation(gen: dict | None) -> dict | None:
+    """The JSON part (no arrays, NaN as None)."""
+    if gen is None:
+        return None
+    from .identify import clean_row
+
+    return {"training": {k: (v if v is None or np.isfinite(v) else None) for k, v in gen["training"].items()},
+            "conditions": [{**{k: v for k, v in c.items() if not k.startswith("_") and k != "rows"},
+                            "rows": [clean_row(r) for r in c["rows"]]} for c in gen["conditions"]]}
+
+
+def _fmt(v):
+    return "-" if v is None or not np.isfinite(v) else f"{v:.1f}"
+
+
+def generalisation_blocks(result, out) -> list:
+    """Report blocks: the table model x condition (fit %), a sentence per model, one figure per condition
+    and a summary figure (written into ``out``)."""
+    gen = result.generalisation
+    if not gen or not gen["conditions"]:
+        return []
+    from .figures import _plt, slug
+
+    names = list(gen["training"])
+    conds = gen["conditions"]
+    fits = {c["name"]: {r["identifier"]: r.get("fit_percent") for r in c["rows"] if r["status"] == "ok"}
+            for c in conds}
+    header = ["model", "trained on (validation half)"] + [c["name"] for c in conds]
+    body = [[n, _fmt(gen["training"][n])] + [_fmt(fits[c["name"]].get(n)) for c in conds] for n in names]
+    blocks = [("h", (2, "Generalisation: trained on one condition, validated on others")),
+              ("p", "Every model is trained once, on the main run (black-box models on its estimation half, the "
+                    "physical model fitted on the same half). Each condition below re-runs the experiment on a "
+                    "changed rig or with a changed signal; the black-box models are simulated on it as they are "
+                    "(not re-identified), the physical model is told the change (a known parameter set to its "
+                    "new value, a fitted one shifted by the known change) and re-runs the experiment. Fit % over "
+                    "the condition's whole record; the first column is the usual validation fit on the training "
+                    "condition.")]
+    items = []
+    for c in conds:
+        what = ", ".join(f"{k} = {v:g}" for k, v in c["rig_overrides"].items())
+        told = ", ".join(f"{k} = {v:.4g}" for k, v in c.get("told", {}).items())
+        items.append(f"{c['name']}: {c['description'] or what}" + (f" (rig: {what}; physical model told {told})"
+                                                                    if what else ""))
+    blocks.append(("ul", items))
+    blocks.append(("table", (header, body)))
+    sentences = []
+    phys = [n for n in names if any(r.get("kind") == "physical_fit" for r in result.rows if r["identifier"] == n)]
+    for c in conds:
+        f = fits[c["name"]]
+        bb = {n: v for n, v in f.items() if n not in phys and v is not None and np.isfinite(v)}
+        if not bb:
+            continue
+        drops = {n: gen["training"][n] - v for n, v in bb.items() if gen["training"].get(n) is not None}
+        worst = max(drops, key=drops.get) if drops else None
+        text = f"{c['name']}: the black-box models score {min(bb.values()):.1f}-{max(bb.values()):.1f} %"
+        if worst is not None:
+            text += f" (largest drop {drops[worst]:.1f} points, {worst})"
+        for n in phys:
+            if f.get(n) is not None:
+                text += f"; the physical model {f[n]:.1f} % (trained {_fmt(gen['training'].get(n))} %)"
+        sentences.append(text + ".")
+    if sentences:
+        blocks.append(("ul", sentences))
+    plt = _plt()
+    unit = {"sensor_V": "V"}.get(result.spec["data"]["output_unit"], result.spec["data"]["output_unit"])
+    for c in conds:
+        name = f"generalisation-{slug(c['name'])}.png"
+        fig, ax = plt.subplots(2, 1, sharex=True, figsize=(9, 5.2), gridspec_kw={"height_ratios": [3, 2]})
+        t, y = c["_t"], c["_y"]
+        ax[0].plot(t, y, color="k", lw=1.3, label="measured (simulated rig)")
+        for i, (n, yhat) in enumerate(c["_yhat"].items()):
+            fp = fits[c["name"]].get(n)
+            ax[0].plot(t, yhat, lw=0.8, color=f"C{i}", label=f"{n}: {_fmt(fp)} %")
+            ax[1].plot(t, y - yhat, lw=0.6, color=f"C{i}")
+        span = float(np.ptp(y)) or 1.0
+        ax[0].set_ylim(float(np.min(y)) - 0.4 * span, float(np.max(y)) + 0.4 * span)
+        ax[0].legend(fontsize=7, ncol=3, loc="upper left")
+        ax[0].set_ylabel(f"y ({unit})")
+        ax[1].set_ylabel(f"error ({unit})")
+        ax[1].set_xlabel("time (s)")
+        fig.suptitle(f"Condition '{c['name']}': models trained on the main run (fit %)", fontsize=10)
+        fig.tight_layout()
+        fig.savefig(out / name, dpi=110)
+        plt.close(fig)
+        blocks.append(("fig", (name, f"Condition '{c['name']}': measured output, each trained model's output "
+                                     "(top) and its error (bottom).")))
+    fig, ax = plt.subplots(figsize=(9, 4))
+    labels = ["training"] + [c["name"] for c in conds]
+    width = 0.8 / max(len(names), 1)
+    for i, n in enumerate(names):
+        vals = [gen["training"].get(n)] + [fits[c["name"]].get(n) for c in conds]
+        vals = [np.nan if v is None else max(v, -50.0) for v in vals]
+        ax.bar(np.arange(len(labels)) + i * width - 0.4 + width / 2, vals, width, label=n)
+    ax.set_xticks(np.arange(len(labels)), labels, fontsize=8)
+    ax.set_ylabel("fit % (clipped at -50)")
+    ax.set_ylim(-50, 105)
+    ax.axhline(0, color="k", lw=0.5)
+    ax.legend(fontsize=7, ncol=3)
+    ax.set_title("Fit per operating condition: trained once, never re-identified", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(out / "generalisation.png", dpi=110)
+    plt.close(fig)
+    blocks.append(("fig", ("generalisation.png", "Fit % of every model on the training condition and on each "
+                                                 "unseen condition.")))
+    return blocks

@@ -1,0 +1,98 @@
+"""The fit says when it ends above noise, warm-started refits, and the robustness set's hardest kinds.
+
+* A recording with a valve dead band fitted by the nominal model cannot reach the sensor noise: the
+  result says so (normalised residual, ``converged_to_noise``, ``success`` false, a warning) and
+  ``pneusim fit`` exits with status 3.
+* The refit with the dead band switched on, warm-started from that nominal fit (diagnosis's use),
+  reaches the noise level and recovers the dead band.
+* Seeded recordings of the robustness set's hardest kinds (:func:`pneusim.fit.robustness.hardest_cases`):
+  the fit reaches the noise level and the truth lies within 3 sigma.
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from pneusim.cli import main
+from pneusim.experiment import standard_experiment
+from pneusim.fit import fit_recording
+from pneusim.fit.result import ABOVE_NOISE_WARNING, FAR_ABOVE_NOISE
+from pneusim.fit.robustness import hardest_cases, make_case, score
+from pneusim.model import make_effect
+from pneusim.recording import write_recording
+from pneusim.rig import load_rig
+from pneusim.simulate import simulate
+
+DEADBAND_V = 0.3
+
+
+@pytest.fixture(scope="module")
+def deadband_case(tmp_path_factory):
+    rig = load_rig("paper2-enfield")
+    true_rig = rig.with_params({"moving_mass_kg": 1.2 * rig["moving_mass_kg"],
+                                "friction_coulomb_N": 0.9 * rig["friction_coulomb_N"]})
+    exp = standard_experiment(true_rig, "pulses", 20.0, "open", seed=5)
+    rec = simulate(true_rig, exp, [make_effect("valve_deadband", deadband_V=DEADBAND_V)], seed=6).recording
+    path = tmp_path_factory.mktemp("deadband") / "deadband.csv"
+    write_recording(rec, path)
+    return rig, rec, path
+
+
+@pytest.fixture(scope="module")
+def nominal_fit(deadband_case):
+    rig, rec, _ = deadband_case
+    return fit_recording(rec, rig, quiet=True)
+
+
+def test_nominal_fit_of_a_dead_band_recording_says_it_is_above_noise(nominal_fit, tmp_path):
+    result = nominal_fit
+    assert result.normalised_residual > FAR_ABOVE_NOISE
+    assert result.normalised_residual == max(result.normalised_residuals.values())
+    assert not result.converged_to_noise
+    assert any("above the sensor noise" in w for w in result.warnings)
+    data = json.loads(result.write_json(tmp_path / "fit.json").read_text())
+    assert data["converged_to_noise"] is False and data["success"] is False
+    assert data["solver"]["success"] is False
+    assert data["normalised_residual"] == pytest.approx(result.normalised_residual)
+
+
+def test_warm_refit_with_the_missing_effect_reaches_noise(deadband_case, nominal_fit):
+    rig, rec, _ = deadband_case
+    refit = fit_recording(rec, rig, [make_effect("valve_deadband")], warm_start=nominal_fit, quiet=True)
+    assert refit.solver["warm_start"] is True
+    assert refit.converged_to_noise and refit.normalised_residual < ABOVE_NOISE_WARNING
+    assert refit.warnings == [] or not any("above the sensor noise" in w for w in refit.warnings)
+    p = refit.parameters["valve_deadband.deadband_V"]
+    assert abs(p.estimate - DEADBAND_V) <= 3.0 * p.std and abs(p.estimate / DEADBAND_V - 1.0) < 0.05
+    # the nominal parameters start from the nominal fit's values, not from the data sheet
+    assert p.start == pytest.approx(0.2)
+    assert refit.parameters["moving_mass_kg"].start == pytest.approx(nominal_fit.estimates["moving_mass_kg"])
+
+
+def test_warm_start_from_another_recording_is_refused(deadband_case, nominal_fit):
+    from pneusim.errors import FitError
+
+    rig, rec, _ = deadband_case
+    shorter = rec.slice(None, rec.time_s[int(0.8 * rec.n_samples)])
+    with pytest.raises(FitError, match="warm_start must be a fit of this recording"):
+        fit_recording(shorter, rig, warm_start=nominal_fit, quiet=True)
+
+
+def test_cli_exits_3_far_above_noise(deadband_case, tmp_path, capsys):
+    _, _, path = deadband_case
+    out = tmp_path / "fit.json"
+    assert main(["fit", str(path), "--json", str(out), "--quiet"]) == 3
+    data = json.loads(out.read_text())
+    assert data["converged_to_noise"] is False and data["normalised_residual"] > FAR_ABOVE_NOISE
+    err = capsys.readouterr().err
+    assert "exit status 3" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("spec", hardest_cases(8), ids=lambda s: s.name)
+def test_hardest_kinds_reach_noise_with_truth_inside_three_sigma(spec):
+    rig, truth, rec = make_case(spec)
+    result = fit_recording(rec, rig, quiet=True)
+    s = score(result, truth)
+    assert result.converged_to_noise, (result.normalised_residuals, result.solver["prefit_attempts"])
+    assert s["inside_3_sigma"] >= s["parameters"] - 1, s["z"]
