@@ -111,6 +111,21 @@ def test_n4sid_sippy(benchmark, data):
     _report(benchmark, "n4sid", "sippy")
 
 
+@pytest.mark.benchmark(group="n4sid")
+def test_n4sid_sysid_one_candidate(benchmark, data):
+    """The default (weighting "auto") estimates MOESP and SSARX at two horizons and keeps the best
+    simulator; this is one MOESP candidate alone, to print what the candidates cost."""
+    m = benchmark(sysid.n4sid, data, 2, weighting="moesp", horizon=10)
+    best = benchmark.stats.stats.min
+    line = f"n4sid sysid, one MOESP candidate: {best * 1e3:.4g} ms"
+    if ("n4sid", "sysid") in RESULTS:
+        ratio = RESULTS[("n4sid", "sysid")] / best
+        benchmark.extra_info["auto_over_one_candidate"] = ratio
+        line += f" -> the default (all candidates) costs {ratio:.3g}x one candidate"
+    print("\n" + line)
+    assert m.nx == 2
+
+
 @pytest.mark.benchmark(group="tfest")
 def test_tfest_sysid(benchmark, ct_data):
     """SIPPY has no continuous-time transfer-function estimator: no ratio."""

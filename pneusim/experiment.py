@@ -145,6 +145,8 @@ def standard_experiment(rig: Rig, kind: str, duration_s: float, loop: str = "clo
     if kind not in INPUT_KINDS:
         raise PneusimError(f"--input must be one of {', '.join(INPUT_KINDS)}, got {kind!r}")
     ts = rig.sample_time_s
+    if not (isinstance(duration_s, (int, float)) and 0 < duration_s < float("inf")):
+        raise PneusimError(f"--duration must be a finite number of seconds > 0, got {duration_s!r}")
     n = int(round(duration_s / ts))
     if n < 50:
         raise PneusimError(f"--duration {duration_s} s gives {n} samples at {ts} s; at least 50 are needed")

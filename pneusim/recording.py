@@ -550,7 +550,7 @@ def check_plausible(recording: Recording, rig) -> None:
             i = int(bad[0])
             line = None if recording.first_row_line is None else recording.first_row_line + i
             where = "" if line is not None else f"sample {i + 1}: "
-            raise InputFileError(f"{where}{values[i]!r} {unit} at t = {recording.time_s[i]:.6g} s is outside {what}; "
+            raise InputFileError(f"{where}{float(values[i])!r} {unit} at t = {recording.time_s[i]:.6g} s is outside {what}; "
                                  f"{bad.size} of {values.size} samples are", path=recording.source, line=line,
                                  field=name)
 

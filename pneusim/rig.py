@@ -22,7 +22,8 @@ from typing import Mapping
 from .errors import InputFileError, PneusimError
 from .tomlfile import read_toml
 
-__all__ = ["Rig", "load_rig", "known_rig_names", "rig_variant_names", "known_stroke_m", "RIG_SECTIONS"]
+__all__ = ["Rig", "load_rig", "known_rig_names", "rig_variant_names", "known_stroke_m", "RIG_SECTIONS",
+           "RANGES", "range_text", "allowed_parameters", "write_rig"]
 
 RIG_DIR = Path(__file__).with_name("rigs")
 RIG_SECTIONS = ("known", "typical", "model", "sensors")
@@ -183,14 +184,30 @@ class Rig:
         """True for a rig that ships with pneusim (``load_rig(name)`` finds it by name)."""
         return bool(self.source) and Path(self.source).resolve() == (RIG_DIR / f"{self.name}.toml").resolve()
 
-    def to_toml(self) -> str:
-        """This rig as a rig file (the text :func:`load_rig` reads back to the same parameters)."""
+    def to_toml(self, effects=()) -> str:
+        """This rig as a rig file (the text :func:`load_rig` reads back to the same parameters).
+
+        ``effects`` (:class:`~pneusim.model.Effect` objects, e.g. a fit's ``effects_``) are written as
+        ``[effects.NAME]`` tables, after those the rig already carries.
+        """
         lines = [f"# Rig file for pneusim ({self.name}); every name carries its SI unit.",
                  f"name = {_toml_string(self.name)}",
                  f"description = {_toml_string(self.description)}"]
         for section in RIG_SECTIONS:
             lines += ["", f"[{section}]"]
             lines += [f"{key} = {float(self.params[key])!r}" for key in self.sections.get(section, ())]
+        texts = list(getattr(self, "effects", ()) or ()) + [e.to_text() for e in effects]
+        for text in texts:
+            name, _, rest = text.partition(":")
+            lines += ["", f"[effects.{name}]"]
+            for item in filter(None, rest.split(",")):
+                key, _, value = item.partition("=")
+                try:
+                    lines.append(f"{key} = {float(value)!r}")
+                except ValueError:
+                    lines.append(f"{key} = {_toml_string(value)}")
+        if self.daq is not None:                      # the NI card's channels (pneusim mre --plant nidaqmx)
+            lines += [""] + self.daq.to_toml_lines()
         return "\n".join(lines) + "\n"
 
 
@@ -200,10 +217,11 @@ def _toml_string(text: str) -> str:
     return json.dumps(str(text))   # a JSON string is a valid TOML basic string
 
 
-def write_rig(rig: Rig, path: str | Path) -> Path:
-    """Write ``rig`` as a rig file (``.toml``) that ``load_rig`` and ``--rig PATH`` accept."""
+def write_rig(rig: Rig, path: str | Path, effects=()) -> Path:
+    """Write ``rig`` (and ``effects``, as ``[effects.NAME]`` tables) as a rig file (``.toml``) that
+    ``load_rig`` and ``--rig PATH`` accept."""
     path = Path(path)
-    path.write_text(rig.to_toml(), encoding="utf-8")
+    path.write_text(rig.to_toml(effects), encoding="utf-8")
     return path
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from .errors import SysidWarning
 
-__all__ = ["finish", "growth_over", "GROWTH_LIMIT"]
+__all__ = ["finish", "problems", "growth_over", "GROWTH_LIMIT"]
 
 GROWTH_LIMIT = 2.0
 """A discrete pole ``|z| > 1`` counts as unstable when ``|z|^N`` over the estimation record exceeds this."""

@@ -86,7 +86,7 @@ def check_values(cols: Mapping[str, np.ndarray], required, stroke_m: float | Non
             with np.errstate(invalid="ignore"):
                 bad = np.flatnonzero((cols[name] < 0) | (cols[name] > PRESSURE_MAX_PA))
             if bad.size:
-                return Problem(name, int(bad[0]), f"pressure {cols[name][bad[0]]!r} Pa is outside [0 Pa, 2 MPa]; "
+                return Problem(name, int(bad[0]), f"pressure {float(cols[name][bad[0]])!r} Pa is outside [0 Pa, 2 MPa]; "
                                "expected absolute pressure in Pa (gauge pressure, or bar/kPa written as Pa?)")
     if stroke_m is not None and "position_m" in cols:
         pos = cols["position_m"]
@@ -94,7 +94,7 @@ def check_values(cols: Mapping[str, np.ndarray], required, stroke_m: float | Non
         bad = np.flatnonzero((pos < lo) | (pos > hi))
         if bad.size:
             return Problem("position_m", int(bad[0]),
-                           f"position {pos[bad[0]]!r} m is outside [-1 %, 101 %] of the stroke {stroke_m!r} m "
+                           f"position {float(pos[bad[0]])!r} m is outside [-1 %, 101 %] of the stroke {stroke_m!r} m "
                            f"([{lo:.6g}, {hi:.6g}] m); it looks like millimetres or volts written as metres")
     return None
 
@@ -107,7 +107,7 @@ def check_time(t: np.ndarray, dt: float) -> Problem | None:
     bad = np.flatnonzero(step <= 0)
     if bad.size:
         i = int(bad[0]) + 1
-        return Problem("time_s", i, f"time {t[i]!r} s is not after the previous sample {t[i - 1]!r} s; "
+        return Problem("time_s", i, f"time {float(t[i])!r} s is not after the previous sample {float(t[i - 1])!r} s; "
                                     "expected strictly increasing time")
     tol = TIME_RTOL * dt
     median = float(np.median(step))
@@ -117,6 +117,6 @@ def check_time(t: np.ndarray, dt: float) -> Problem | None:
     bad = np.flatnonzero(np.abs(step - dt) > tol)
     if bad.size:
         i = int(bad[0]) + 1
-        return Problem("time_s", i, f"time step {step[i - 1]!r} s from the previous sample; expected uniform "
+        return Problem("time_s", i, f"time step {float(step[i - 1])!r} s from the previous sample; expected uniform "
                                     f"sampling at {dt!r} s within {TIME_RTOL:g} relative")
     return None

@@ -53,6 +53,11 @@ def as_idpoly(model, Ts=None) -> IDPoly:
 
 
 def _check_finite(yhat, m: IDPoly, what: str):
+    if not np.all(np.isfinite(yhat)) and "prediction" in what:
+        roots = np.roots(np.trim_zeros(np.convolve(m.C, m.F), "b")) if m.nc + m.nf else np.zeros(0)
+        r = float(np.max(np.abs(roots))) if roots.size else float("nan")
+        raise SysidError(f"the model's predictor is unstable (a root of C F has |z| = {r:.6g}): its {what} "
+                         f"overflows over {yhat.size} samples; use a model with a stable noise model.")
     if not np.all(np.isfinite(yhat)):
         poles = m.poles()
         r = float(np.max(np.abs(poles))) if poles.size else float("nan")

@@ -311,4 +311,7 @@ def rls(data: IDData, orders, forgetting: float = 1.0, initial_covariance: float
     for t, (yk, uk) in enumerate(zip(data.y.tolist(), data.u.tolist())):
         errs[t] = upd(yk, uk)
         hist[t] = M[:, d]
-    return RLSResult(est, hist, errs)
+    res = RLSResult(est, hist, errs)
+    from ._diagnose import finish
+    finish(res.model_, data, "final RLS model")   # says so when the last estimate is unstable or B = 0
+    return res

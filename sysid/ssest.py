@@ -15,8 +15,8 @@ import warnings as _warnings
 from ._blas import one_blas_thread
 from ._checks import check_data
 from ._diagnose import finish
-from .errors import SysidWarning
 from .data import IDData
+from .errors import SysidWarning
 from .pem import ARMAX
 from .polynomial import is_stable_poly
 from .statespace import IDSS, idss_from_armax
@@ -55,7 +55,8 @@ class SSEst:
         data = check_data(data)
         with _warnings.catch_warnings():  # the start and the ARMAX step are judged once, at the end
             _warnings.simplefilter("ignore", SysidWarning)
-            return self._fit(data)
+            model = self._fit(data)
+        return finish(model, data, f"ssest model (nx = {model.nx})")
 
     def _fit(self, data):
         start = N4SID(self.nx, feedthrough=self.feedthrough, **self.n4sid_options).fit(data)
@@ -70,9 +71,6 @@ class SSEst:
                                 singular_values=start.singular_values, report=dict(p.report))
         self.start_ = start
         self.model_ = model
-        with _warnings.catch_warnings():
-            _warnings.simplefilter("default", SysidWarning)
-            finish(model, data, f"ssest model (nx = {nx})")
         return model
 
 

@@ -1,18 +1,28 @@
 """Subspace identification (N4SID-type) of an innovations state-space model.
 
-Steps (Van Overschee & De Moor 1996, ch. 4; Verhaegen 1994 for the
-weighting):
+Steps (Van Overschee & De Moor 1996, ch. 4; Verhaegen 1994 for the MOESP
+weighting; Jansson 2003 and van der Veen et al. 2013 for the ARX-predictor
+(SSARX / PBSID) weighting):
 
-1. block Hankel matrices of past/future inputs and outputs, horizon ``i``;
-2. oblique projection ``O_i = Y_f /_{U_f} W_p`` of future outputs on past
-   data ``W_p = [U_p; Y_p]`` along future inputs, by least squares;
-3. SVD of ``O_i`` weighted by the projection orthogonal to ``U_f``; the
-   order is the largest gap of the log singular values when not given;
-4. state sequence ``X = S^-1/2 U^T O_i``; ``A, C`` and the Kalman gain ``K``
-   by least squares on consecutive states and the residual covariances;
-5. ``B, D`` and the initial state re-estimated by least squares on the
-   simulated output (so the model is good in simulation, MATLAB ``compare``);
-6. parameter covariance of the basis-independent ARMAX-equivalent
+1. ``y`` and ``u`` scaled to unit RMS (the result does not depend on units);
+2. MOESP: block Hankel matrices of past/future inputs and outputs, horizon
+   ``i``; oblique projection ``O_i = Y_f /_{U_f} W_p`` by one QR; SVD weighted
+   by the projection orthogonal to ``U_f``; ``A, C`` from the shift invariance
+   of the observability matrix, ``K`` from the residual covariances.
+   SSARX: a high-order ARX predictor (past data only, so unbiased with
+   feedback) removes the future innovations' effect; the SVD of the
+   predictor's state part gives the states; ``C`` then ``A, B, K`` by least
+   squares on them.  The order is the largest gap of the log singular values
+   when not given;
+3. per candidate (weighting, horizon; with an unstable ``A`` also its twin
+   with the unstable eigenvalues reflected), ``B, D`` and the initial state by
+   linear least squares on the simulated output (scaled columns, FFT
+   convolutions of ``C A^t`` with ``u``), through the stable one-step
+   predictor when ``A`` is too unstable to simulate;
+4. the candidate that simulates the estimation data best is kept; an
+   unstable or degenerate result is said (``model.warnings``,
+   :class:`sysid.SysidWarning`);
+5. parameter covariance of the basis-independent ARMAX-equivalent
    coefficients (:attr:`IDSS.parameters`): ``sigma^2 (J^T J)^-1`` with ``J`` the
    exact prediction-error gradient at the estimate, as for the PEM models.
    A subspace estimate is not a minimiser of the prediction error and not
@@ -155,7 +165,7 @@ class N4SID:
                       x0=best["x0"] * sy,
                       candidates=[dict(weighting=c["weighting"], horizon=c["extra_report"]["horizon"],
                                        stability_enforced=c["reflected"],
-                                       simulation_fit_percent=c["sim_fit"]) for c in cands])
+                                       simulation_fit_percent=float(c["sim_fit"])) for c in cands])
         report.update(best["extra_report"])
         model = IDSS(A, B, Cm, D, K, Ts=data.Ts, noise_variance=best["Svv"] * sy ** 2,
                      singular_values=best["s"], report=report)
@@ -207,7 +217,7 @@ class N4SID:
         w = Rx - bs @ uc[None, :]
         v = Ry - (float(uc @ Ry) / float(uc @ uc)) * uc if self.feedthrough else Ry
         Svv = float(v @ v) / v.size
-        K = (w @ v / v.size / Svv).reshape(nx, 1)
+        K = _kalman_gain(A, Cm, w, v)
         Bs = bs.reshape(nx, 1)
         Ds = float(uc @ Ry) / float(uc @ uc) if self.feedthrough else 0.0
         return A, Cm, K, dict(s=s, Svv=Svv, B=Bs, D=np.array([[Ds]]), report=dict(gamma=Gam))
@@ -235,10 +245,16 @@ class N4SID:
         M = np.empty((f, T))
         for jj in range(f):
             M[jj] = Z[:, :2 * (p - jj)] @ Xi[2 * jj:]
-        Us, s, Vt = np.linalg.svd(M, full_matrices=False)
+        # SVD of the short, wide M through its f x f Gram matrix: M = U S V^T, V^T = S^-1 U^T M
+        w, Us = np.linalg.eigh(M @ M.T)
+        w, Us = w[::-1], Us[:, ::-1]
+        s = np.sqrt(np.clip(w, 0.0, None))
+        nx = _order(s / np.sqrt(T), nx, nmax)
+        if not s[nx - 1] > 1e-12 * s[0]:
+            raise SysidError(f"the data cannot support n4sid with nx = {nx}: the state sequence has rank "
+                             f"{int(np.sum(s > 1e-12 * s[0]))} (input not persistently exciting?).")
+        X = (Us[:, :nx].T @ M) / np.sqrt(s[:nx])[:, None]    # states x(t) = S^1/2 V^T, t = p .. N-1
         s = s / np.sqrt(T)
-        nx = _order(s, nx, nmax)
-        X = np.sqrt(s[:nx])[:, None] * Vt[:nx] * np.sqrt(T)   # states x(t), t = p .. N-1
         yt, ut = y[p:], u[p:]
         reg1 = np.column_stack([X.T, ut]) if self.feedthrough else X.T
         th1 = np.linalg.lstsq(reg1, yt, rcond=None)[0]
@@ -277,6 +293,30 @@ class N4SID:
         return dict(weighting=name, A=A, B=B, C=Cm, D=D, K=K, x0=x0, s=extra["s"], Svv=extra["Svv"],
                     loss=loss, sim_rss=sim_rss, sim_fit=sim_fit, degenerate=degenerate, reflected=bool(reflect),
                     extra_report=extra["report"])
+
+
+def _kalman_gain(A, C, w, v):
+    """Steady-state Kalman gain from the residual covariances of the state and output equations.
+
+    ``Q = cov(w)``, ``R = var(v)``, ``S = cov(w, v)``; ``P`` from the discrete Riccati equation and
+    ``K = (A P C^T + S)(C P C^T + R)^-1`` (Van Overschee & De Moor 1996, sec. 4.3.3), which makes
+    ``A - K C`` stable.  Falls back to ``S / R`` (``P = 0``) when the Riccati equation has no
+    stabilising solution.
+    """
+    from scipy.linalg import solve_discrete_are
+    n = A.shape[0]
+    m = v.size
+    R = float(v @ v) / m
+    S = (w @ v / m).reshape(n, 1)
+    Q = (w @ w.T) / m
+    try:
+        P = solve_discrete_are(A.T, C.T, Q, np.array([[R]]), s=S)
+        K = (A @ P @ C.T + S) / ((C @ P @ C.T).item() + R)
+        if np.all(np.isfinite(K)):
+            return K
+    except (np.linalg.LinAlgError, ValueError):
+        pass
+    return S / R
 
 
 def _order(s: np.ndarray, nx, nmax: int) -> int:

@@ -150,7 +150,9 @@ def rig_for_recording(recording, path: str, rig_option: str | None, params: list
         else:
             try:
                 rig = load_rig(name)
-            except PneusimError:
+            except PneusimError as exc:
+                if "unknown rig" not in str(exc):
+                    raise   # a rig file that exists but is broken: its own message names the field
                 raise PneusimError(f"{path}: metadata 'rig: {name}' is not a known rig (shipped: "
                                    f"{', '.join(known_rig_names())}); give --rig FILE.toml, the rig file of "
                                    "the rig that recorded it") from None

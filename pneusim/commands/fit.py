@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from ..errors import PneusimError
 from ..recording import check_plausible, read_recording
-from .common import add_rig_arguments, output_file, output_folder, parse_effects, rig_for_recording
+from .common import (add_rig_arguments, number_type, output_file, output_folder, parse_effects,
+                     rig_for_recording)
 
 
 def register(sub) -> None:
@@ -26,7 +27,8 @@ def register(sub) -> None:
     p.add_argument("--free", action="append", metavar="NAME",
                    help="a parameter to fit (repeatable; default: valve conductance and critical pressure ratio, "
                         "friction, moving mass, plus the parameters of the effects switched on)")
-    p.add_argument("--validation-fraction", type=float, default=0.3, metavar="F",
+    p.add_argument("--validation-fraction", type=number_type("a fraction in (0, 1)", 0.0, 1.0, low_included=False,
+                                                             high_included=False), default=0.3, metavar="F",
                    help="final fraction of the recording kept for validation (default 0.3)")
     p.add_argument("--json", metavar="OUT.json", help="write the result as JSON")
     p.add_argument("--report", metavar="DIR", help="write report.md, fit.json and fit.png into DIR")
@@ -76,7 +78,7 @@ def run(args) -> int:
         from ..rig import write_rig
         fitted = dataclasses.replace(result.rig_, name=Path(args.rig_out).stem,
                                      description=f"{rig.name} fitted to {args.recording} (pneusim fit)")
-        write_rig(fitted, args.rig_out)
+        write_rig(fitted, args.rig_out, getattr(result, "effects_", ()))
         print(f"wrote {args.rig_out} (use it with --rig {args.rig_out})")
     from ..fit.result import FAR_ABOVE_NOISE
     if result.normalised_residual > FAR_ABOVE_NOISE:

@@ -5,13 +5,15 @@ from __future__ import annotations
 import sys
 
 from ..errors import PneusimError
-from .common import DURATION, output_folder
+from .common import DURATION, number_type, output_folder
+
+CPU = number_type("a CPU number >= 0", 0, integer=True)
 
 
 def register(sub) -> None:
     p = sub.add_parser(
         "mre", help="run controller, online identifiers and a plant in one real-time loop",
-        description="Run an MRE file (see scenarios/README.md): the controller and the online identifiers in one "
+        description="Run an MRE file (example: scenarios/mre-paper1.toml): the controller and the online identifiers in one "
                     "loop at the rig's sample time, against a simulated, replayed, networked (UDP) or real (NI DAQ) "
                     "plant. The recording is written row by row to OUT/recording.csv; Ctrl-C, a fault or too many "
                     "overruns stop the loop with the valve at its null and everything so far on disk. A report "
@@ -30,6 +32,8 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--no-status", action="store_true", help="no live status line")
     p.add_argument("--no-report", action="store_true", help="skip the report (recording and summary only)")
+    p.add_argument("--cpu", type=CPU, default=None, metavar="N",
+                   help="pin the process to CPU N during the run (Linux; os.sched_setaffinity)")
     p.set_defaults(func=run, mode=None)
 
 
@@ -42,6 +46,13 @@ def run(args) -> int:
     if args.plant is not None:
         parse_plant(args.plant)
     out = output_folder(args.out, "--out")
+    if args.cpu is not None:
+        import os
+        try:
+            os.sched_setaffinity(0, {args.cpu})
+        except (AttributeError, OSError) as exc:
+            raise PneusimError(f"--cpu {args.cpu}: cannot pin the process to that CPU "
+                               f"({getattr(exc, 'strerror', None) or exc})") from None
     mr = run_mre(spec, out, plant=args.plant, mode=args.mode, duration_s=args.duration,
                  status=not args.no_status and sys.stderr.isatty(), report=not args.no_report)
     s = mr.summary
@@ -56,6 +67,9 @@ def run(args) -> int:
     if tm["compute_s"]:
         print(f"computation per sample: p50 {tm['compute_s']['p50'] * 1e3:.3f} ms, "
               f"p99 {tm['compute_s']['p99'] * 1e3:.3f} ms")
+    if s["plant"].startswith("replay:"):
+        print("replay plant: OPEN LOOP - the measurements were played back from the recording; the loop's "
+              "commands were logged but did not act on them")
     for key, value in s["plant_counts"].items():
         if key != "rtt_s":
             print(f"plant {key}: {value}")
@@ -67,6 +81,7 @@ def run(args) -> int:
         print("interrupted: the valve was sent to its null; the recording holds every sample taken", file=sys.stderr)
         return 130
     if s["stop_reason"] != "completed":
+        short = " (fewer than 50: too short for pneusim check)" if s["samples"] < 50 else ""
         raise PneusimError(f"the run stopped early ({s['stop_reason']}: {s['error']}); the valve was sent to its "
-                           f"null and the {s['samples']} samples taken are in {out / 'recording.csv'}")
+                           f"null and the {s['samples']} samples taken are in {out / 'recording.csv'}{short}")
     return 0

@@ -52,7 +52,7 @@ def run(args) -> int:
             raise PneusimError("give either --input or --like, not both")
         recording = read_recording(args.like)
         if args.loop and recording.loop and args.loop != recording.loop:
-            raise PneusimError(f"--loop {args.loop}: {args.like} is a {recording.loop}-loop recording, "
+            raise PneusimError(f"--loop {args.loop}: {args.like} is a recording in {recording.loop} loop, "
                                "and --like re-runs its experiment as it was")
         rig = rig_for_recording(recording, args.like, args.rig, args.param, use_metadata_overrides=not args.rig)
         if abs(recording.sample_time_s - rig.sample_time_s) > 1e-12:
@@ -78,6 +78,8 @@ def run(args) -> int:
         if not args.rig:
             raise PneusimError("give --rig (paper1-mre, paper2-enfield or a rig file)")
         rig = rig_with_overrides(args.rig, args.param)
+        if not args.effect and getattr(rig, "effects", ()):
+            effects = parse_effects(list(rig.effects))   # a rig file's [effects.NAME] tables (e.g. a fitted rig)
         duration = args.duration if args.duration is not None else (80.0 if rig.name == "paper2-enfield" else 20.0)
         seed = args.seed if args.seed is not None else 0
         noise = args.noise_scale if args.noise_scale is not None else 1.0

@@ -36,6 +36,13 @@ __all__ = ["diagnose", "MIN_SAMPLES"]
 
 #: a recording shorter than this cannot be split into estimation and validation parts worth fitting
 MIN_SAMPLES = 500
+#: a candidate is refitted when its screening score is at least this fraction of the leading one's
+RELATIVE_SCORE = 0.05
+#: ... and it explains at least this fraction of the nominal residual sum of squares (in noise units)
+MIN_EXPLAINED = 0.01
+#: with no effect kept, a nominal residual rms above this multiple of the sensor noise is reported as
+#: an ``other`` finding (the nominal model is clearly short, but no vocabulary effect explains it)
+OTHER_RESIDUAL = 3.0
 
 
 def _progress(enabled, message):
@@ -142,21 +149,29 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     started = time.perf_counter()
     recording, rig = _load(recording, rig)
     name = Path(str(recording.source or "recording")).name
-    candidates = cand.candidate_list(rig, recording.sample_time_s, effects)
+    cand.candidate_list(rig, recording.sample_time_s, effects)  # an unknown effect is refused before any work
     n_est = _check_input(recording, rig, validation_fraction)
     _progress(progress, f"{name}: nominal fit")
     try:
         nominal = fit_recording(recording, rig, validation_fraction=validation_fraction, quiet=True)
     except TypeError:
         nominal = fit_recording(recording, rig, validation_fraction=validation_fraction)
-    except FitError as exc:
-        raise FitError(f"the nominal fit cannot start on this recording: {exc}") from None
+    except PneusimError as exc:
+        raise FitError(f"{name}: the nominal fit failed on this recording: {exc}") from None
     rig_used = nominal.rig
     t_nominal = time.perf_counter() - started
     noise = cand.noise_levels(recording, rig_used)
     states = _named(nominal)
     windows, _ = locate_mismatch(recording, rig_used, states, noise)
     signatures = compute_signatures(recording, rig_used, states, states["velocity_m_per_s"])
+    # the transport delays scanned: around the lag of the command-residual cross-correlation when it
+    # points to one, else the default scan
+    dt = recording.sample_time_s
+    lag = signatures.get("lag_s", float("nan"))
+    delays = None
+    if math.isfinite(lag) and lag >= dt and abs(signatures.get("lag_r", 0.0)) > 0.1:
+        delays = sorted({max(dt, round(f * lag / dt) * dt) for f in (0.6, 1.0, 1.6)})
+    candidates = cand.candidate_list(rig, dt, effects, delays)
     _progress(progress, f"{name}: nominal validation fit {nominal.fit_percent:.2f} %, {len(windows)} mismatch "
                         f"window(s); screening {len(candidates)} candidates")
 
@@ -203,14 +218,16 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     floor = cand.validation_noise_points(recording, nominal.n_estimation, noise)
     fit0 = nominal.fit_percent
     refits = {}
-    for eff in [k for k in ranked if best_variant[k][0] > 0][:max(0, max_refits)]:
+    top = best_variant[ranked[0]][0] if ranked else 0.0
+    least = max(MIN_EXPLAINED * base["cost"], RELATIVE_SCORE * top, 0.0)
+    leading = [k for k in ranked if best_variant[k][0] > least]
+    for eff in leading[:max(0, max_refits)]:
         score, c, s = best_variant[eff]
         trial = trials[eff]
-        effect = _effect_with(c, s)
         t0 = time.perf_counter()
         _progress(progress, f"{name}: refit with {c.label}")
         try:
-            fit1 = cand.refit(recording, rig_used, [effect], nominal)
+            fit1 = cand.refit(recording, rig_used, [_effect_with(c, s)], nominal)
         except Exception as exc:  # noqa: BLE001 - a failed refit is reported in the result
             if not cand.is_solver_failure(exc):
                 raise
@@ -236,10 +253,9 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
             if len(findings) >= max_findings:
                 break
             c = refits[eff][1]
-            effect = _effect_with(c, {"parameters": trials[eff].parameters})
-            t0 = time.perf_counter()
             _progress(progress, f"{name}: refit with {first} and {eff}")
             try:
+                effect = _effect_with(c, {"parameters": trials[eff].parameters})
                 fit2 = cand.refit(recording, rig_used, list(final.effects_) + [effect], final)
             except Exception as exc:  # noqa: BLE001
                 if not cand.is_solver_failure(exc):
@@ -255,6 +271,19 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
                 final = fit2
             else:
                 trials[eff].kept = False
+    rms_ratio = math.sqrt(cost0 / max(n_res, 1))
+    if not findings and rms_ratio > OTHER_RESIDUAL and windows:
+        # the nominal model is clearly short but no effect of the vocabulary explains it
+        conditions = {}
+        for w in windows:
+            conditions[w.condition] = conditions.get(w.condition, 0.0) + (w.t_end_s - w.t_start_s)
+        where = max(conditions, key=conditions.get)
+        findings.append(Finding(
+            effect="other",
+            evidence=(f"the fitted nominal model leaves a residual of {rms_ratio:.1f} times the sensor noise on the "
+                      f"estimation part, in {len(windows)} window(s), longest in '{where}'; no vocabulary effect "
+                      "passed the test (see the candidates)"),
+            parameters={}, fit_percent=fit0, improvement_points=0.0))
     test = ("keep a candidate when its refit lowers the BIC on the estimation part (N ln(C0/C1) > k ln N, C the "
             "residual sum of squares in sensor-noise units) and raises the validation fit by more than "
             f"max(0.5, F) = {max(0.5, floor):.2f} points, F = {floor:.2f} the fit white sensor noise alone takes "
@@ -283,10 +312,15 @@ def _effect_with(c: "cand.Candidate", screened: dict):
             values[key] = float(v)
     if c.name == "leakage":
         values["conductance_kg_per_s_Pa"] = max(values["conductance_kg_per_s_Pa"], 1e-11)
-    if c.name == "external_load":
-        values["stiffness_N_per_m"] = max(values["stiffness_N_per_m"], 0.0)
-    if c.name == "valve_deadband":
-        values["deadband_V"] = max(values["deadband_V"], 0.0)
+    # a screening step may leave a parameter just outside the effect's physical range: start inside it
+    for key, bounds in getattr(type(c.effect), "ranges", {}).items():
+        if key in values and bounds is not None:
+            lo, hi = bounds[0], bounds[1]
+            span = 1e-6 * max(abs(values[key]), 1e-9)
+            if values[key] < lo or (values[key] == lo and not bounds[2]):
+                values[key] = lo if bounds[2] else lo + span
+            if values[key] > hi or (values[key] == hi and not bounds[3]):
+                values[key] = hi if bounds[3] else hi - span
     return make_effect(c.name, **c.effect.option_values, **values)
 
 

@@ -111,6 +111,9 @@ def _binned(x, y, bins=20):
     x, y = x[ok], y[ok]
     if x.size < bins * 3:
         return np.array([]), np.array([])
+    values = np.unique(x)
+    if values.size <= bins:  # a few distinct levels (pulse commands): one point per level
+        return values, np.array([y[x == v].mean() for v in values])
     edges = np.quantile(x, np.linspace(0, 1, bins + 1))
     centres, means = [], []
     for a, b in zip(edges[:-1], edges[1:]):
@@ -177,14 +180,14 @@ def plot_evidence(result: DiagnosisResult, k: int, path) -> Path:
         vn = nom["velocity_m_per_s"]
         vf = fin["velocity_m_per_s"]
         null = float(result.nominal_fit.rig.params.get("valve_null_V", 5.0))
-        small = np.abs(u - null) < 1.5
+        small = np.abs(u - null) < 3.0
         for vv, c, lab in ((v, "0.2", "measured"), (vn, "C0", "nominal"), (vf, "C2", "with findings")):
-            cx, cy = _binned(u[small], vv[small] * 1e3, bins=30)
+            cx, cy = _binned(np.round(u[small], 2), vv[small] * 1e3, bins=30)
             ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
         ax.axvline(null, color="0.5", lw=0.5, ls=":")
         ax.set_xlabel("valve command (V)")
         ax.set_ylabel("velocity (mm/s), binned mean")
-        ax.set_title("command-velocity map near null")
+        ax.set_title("command-velocity map (mean velocity at each command)")
     else:  # leakage, heat transfer and anything else: the residual over time
         s = result.signatures
         ax.plot(t, (x - nom["position_m"]) * 1e3, lw=0.6, color="C0", label="nominal")

@@ -15,6 +15,8 @@ driven by the recorded command, its parameters fitted to the recording), never f
   is at rest, minus the model's (leakage, valve offset);
 * ``flat_spot_V`` -- half-width of the command band around null in which the measured piston
   does not move, minus the same band of the model (valve dead band);
+* ``small_command_speed_deficit`` -- how much less the small quarter of the off-null commands moves
+  the piston than the large quarter, relative to the model (dead band);
 * ``null_shift_V`` -- command at which the measured velocity crosses zero (a line through the
   small-command samples), minus the model's (valve offset);
 * ``hold_pressure_drift_kPa_s`` -- mean rate of the pressure residual while holding still after a
@@ -45,10 +47,8 @@ def _corr(a, b) -> float:
 
 
 def _band(u_rel, speed, moving):
-    """Half-width of the command band around null in which the piston stays still (90th percentile
-    of |u - null| over the still samples with small commands)."""
+    """The smallest commands (5th percentile of |u - null|, within 1 V of null) that move the piston."""
     small = np.abs(u_rel) < 1.0
-    still = small & ~moving
     go = small & moving
     if go.sum() < 5:
         return float("nan")
@@ -109,6 +109,19 @@ def compute_signatures(recording, rig, model_states: dict, velocity_model: np.nd
                          if hold.sum() > 10 else float("nan"))
     u_rel = u - null
     out["flat_spot_V"] = (_band(u_rel, v_meas, moving) - _band(u_rel, v_model, np.abs(v_model) > moving_thr))
+    # speed measured / model for the smallest and the largest quarter of the off-null commands: a dead
+    # band (or a spool that cannot follow) takes more from small commands than from large ones
+    off = (np.abs(u_rel) > 0.02 * 5.0) & ok
+    if off.sum() > 40:
+        a = np.abs(u_rel[off])
+        lo_q, hi_q = np.percentile(a, [25, 75])
+        vm, vs = np.abs(v_meas[off]), np.abs(v_model[off])
+        small, large = a <= lo_q, a >= hi_q
+        ratio_small = vm[small].mean() / max(vs[small].mean(), 1e-12)
+        ratio_large = vm[large].mean() / max(vs[large].mean(), 1e-12)
+        out["small_command_speed_deficit"] = float(1.0 - ratio_small / ratio_large) if ratio_large > 0 else float("nan")
+    else:
+        out["small_command_speed_deficit"] = float("nan")
     small = (np.abs(u_rel) < 1.0) & ok
     if small.sum() > 20 and np.ptp(u_rel[small]) > 0:
         a_m = np.polyfit(u_rel[small], v_meas[small], 1)
@@ -159,7 +172,9 @@ def evidence_text(effect: str, sig: dict) -> str:
         return (f"command-residual cross-correlation peaks at a lag of {_f(s['lag_s'] * 1e3, '.0f')} ms "
                 f"(r = {_f(s['lag_r'], '+.2f')}): lag after fast command changes")
     if effect == "valve_deadband":
-        return f"flat spot of the command-velocity map around null wider than the model's by {_f(s['flat_spot_V'], '+.3f')} V"
+        return (f"flat spot of the command-velocity map around null wider than the model's by {_f(s['flat_spot_V'], '+.3f')} V; "
+                f"small commands move the piston {_f(100 * s['small_command_speed_deficit'], '.0f')} % less than large ones "
+                "relative to the model")
     if effect == "valve_offset":
         return (f"measured velocity crosses zero {_f(s['null_shift_V'], '+.3f')} V from the model's null; "
                 f"creep near null {_f(s['creep_mm_s'], '+.3f')} mm/s beyond the model")

@@ -18,7 +18,13 @@
    warnings for parameters the recording cannot pin down;
 6. **validation** — the fitted model simulated over the validation part with
    the recorded command, from the state the fit estimated at its start, and
-   scored with MATLAB's fit %.
+   scored with MATLAB's fit %;
+7. **noise check** — the residual rms of each measured signal over its sensor
+   noise (:attr:`FitResult.normalised_residual`); above 1.1 the result says
+   ``converged_to_noise = False``, ``solver["success"] = False`` and warns.
+
+``warm_start=`` (a fit of the same recording) skips 3. and starts 4. from that
+fit's parameters and states: diagnosis's refits with one more effect.
 """
 
 from __future__ import annotations

@@ -58,9 +58,8 @@ _TABLE = {
     "heat_transfer.time_constant_s": (None, 1e-3, 100.0),
     "heat_transfer.wall_temperature_K": (293.15, 200.0, 400.0),
     "transport_delay.delay_s": (0.01, 0.0, 0.5),
-    # down to -0.5 (the factor stays positive up to |p_A - p_B| = supply gauge) so that a recording
-    # without the effect gives an estimate scattered around zero rather than pinned at a bound
-    "pressure_dependent_friction.pressure_coefficient": (1.0, -0.5, 20.0),
+    # friction grows with the pressure across the seal: k >= 0 (the effect's own range)
+    "pressure_dependent_friction.pressure_coefficient": (1.0, 0.0, 20.0),
 }
 
 

@@ -33,6 +33,8 @@ _SHAPE = ("static_over_coulomb", "stribeck_velocity_m_per_s", "viscous_N_s_per_m
 #: (typical magnitude, lower bound, upper bound) of each parameter, SI.  A friction test runs at
 #: about one speed per direction, so the bounds keep the shape physical: levels and viscous friction
 #: not negative, static friction 1 to 3 times the Coulomb level (one ratio for both directions).
+#: The pressure coefficient may go slightly negative (the factor stays positive up to |p| = S) so
+#: that friction without pressure dependence gives an estimate scattered about zero, not pinned at 0.
 _TABLE = {
     "coulomb_extend_N": (5.0, 0.0, 1e3),
     "coulomb_retract_N": (5.0, 0.0, 1e3),

@@ -33,8 +33,8 @@ __all__ = ["FrictionStudy", "LawFit", "SealResult"]
 
 EFFECT = "pressure_dependent_friction"
 
-#: fits use every second sample (the velocity is smoothed over 15 samples); scores use every sample
-FIT_STRIDE = 2
+#: fits use every fourth sample (the velocity is a slope over 15 samples); scores use every sample
+FIT_STRIDE = 4
 
 #: |velocity| above which a sample counts as sliding for the model-free per-pressure levels, m/s
 SLIDING_SPEED_M_PER_S = 3e-3
@@ -196,7 +196,7 @@ class FrictionStudy:
             return law.force_N(z * scales, v, p, reference, self.supply_gauge_Pa, jacobian=True)[1] * scales
 
         res = least_squares(residual, law.start(v, f) / scales, jac=jacobian, bounds=(lo / scales, hi / scales),
-                            method="trf", x_scale=1.0, max_nfev=200)
+                            method="trf", x_scale=1.0, max_nfev=200, tr_solver="lsmr")
         theta = res.x * scales
         dof = max(f.size - theta.size, 1)
         s2 = float(res.fun @ res.fun) / dof

@@ -34,9 +34,9 @@ NI's driver; our tests replace the ``nidaqmx`` calls by fakes.
 from __future__ import annotations
 
 import importlib
+import json
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 from ..errors import InputFileError, PneusimError
 from ..plant import Measurement
@@ -85,6 +85,24 @@ class DaqConfig:
     def pressure_Pa(self, volts: float) -> float:
         """Transducer volts to absolute pressure, Pa."""
         return self.pressure_offset_Pa + volts * self.pressure_Pa_per_V
+
+    def to_toml_lines(self) -> list[str]:
+        """The ``[daq]`` section as rig-file lines (what :func:`parse_daq_section` reads back)."""
+        keys = ["valve_channel", "valve_range_V", "position_channel", "position_range_V", "position_V_per_m",
+                "position_offset_V", "terminal_config", "timeout_s"]
+        if self.has_pressures:
+            keys += ["pressure_a_channel", "pressure_b_channel", "pressure_range_V", "pressure_Pa_per_V",
+                     "pressure_offset_Pa"]
+        out = ["[daq]"]
+        for key in keys:
+            v = getattr(self, key)
+            if isinstance(v, str):
+                out.append(f"{key} = {json.dumps(v)}")       # a JSON string is a TOML basic string
+            elif isinstance(v, tuple):
+                out.append(f"{key} = [{v[0]!r}, {v[1]!r}]")
+            else:
+                out.append(f"{key} = {v!r}")
+        return out
 
 
 def parse_daq_section(table, path, known: dict | None = None) -> DaqConfig:

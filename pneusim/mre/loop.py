@@ -14,7 +14,10 @@ offline (``--fast``) gives the same recording as the live one (``--realtime``),
 timing columns aside.  Per sample the loop keeps the lateness of the start
 against its absolute deadline, the latency from the start of the measurement to
 the command being ready, and the loop's own computation time; a sample whose
-work ends after the next deadline is an *overrun*.
+work ends after the next deadline is an *overrun*.  A late sample runs at once
+(the deadlines never move, so the loop catches up without drift); no sample is
+skipped, so on a real plant a late sample is measured after its nominal time, by
+the ``lateness_s`` the recording holds.
 
 On Ctrl-C (:class:`KeyboardInterrupt`), on any exception raised by a
 component (a *fault*) or when the overruns exceed their budget, the loop stops,
@@ -111,10 +114,13 @@ class StatusLine:
         Where to write (``sys.stderr`` by default).
     interval_s : float
         Wall time between two updates.
+    label : str
+        First word of the line.
     """
 
-    def __init__(self, stream=None, interval_s: float = 0.5):
+    def __init__(self, stream=None, interval_s: float = 0.5, label: str = "mre"):
         self.stream = stream if stream is not None else sys.stderr
+        self.label = label
         self.interval_s = float(interval_s)
         self.last_text = ""
 
@@ -124,7 +130,7 @@ class StatusLine:
         timing = (f", lateness p50 {np.percentile(lat, 50) * 1e3:.3f} ms p99 {np.percentile(lat, 99) * 1e3:.3f} ms "
                   f"max {lat.max() * 1e3:.3f} ms" if lat.size else "")
         e = f", 1-step error ({err_name}) {err:+.4g}" if err_name else ""
-        self.last_text = (f"mre: {k}/{n} samples ({100.0 * k / max(n, 1):.0f} %), overruns {overruns}, "
+        self.last_text = (f"{self.label}: {k}/{n} samples ({100.0 * k / max(n, 1):.0f} %), overruns {overruns}, "
                           f"late > Ts/2 {late_half}{timing}{e}")
         self.stream.write("\r" + self.last_text + "   ")
         self.stream.flush()

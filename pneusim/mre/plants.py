@@ -102,3 +102,7 @@ class ReplayPlant:
     def step(self, command_V: float) -> None:
         self.commands_V.append(float(command_V))
         self._i += 1
+
+    def safe_stop(self, null_V: float | None = None) -> None:
+        """Log the valve-to-null command that ends the run (nothing acts on it: open loop)."""
+        self.null_V_sent = null_V

@@ -52,10 +52,11 @@ class RecordingWriter:
 
     def flush(self) -> None:
         if self._buf and not self._file.closed:
-            self._file.write("\n".join(self._buf) + "\n")
+            # take the rows first: a Ctrl-C between the write and the bookkeeping must never write a row twice
+            rows, self._buf = self._buf, []
+            self._file.write("\n".join(rows) + "\n")
             self._file.flush()
-            self.rows_written += len(self._buf)
-            self._buf.clear()
+            self.rows_written += len(rows)
 
     def close(self) -> None:
         if not self._file.closed:

@@ -120,7 +120,7 @@ def write_report(run, comp, spec) -> Path:
              f"* plant: `{s['plant']}`; mode: {s['mode']} (pacing: {s['pacing']}); sample time {ts * 1e3:g} ms",
              f"* stopped: **{s['stop_reason']}**" + (f" ({s['error']})" if s["error"] else ""),
              f"* samples recorded: {s['samples']} of {s['samples_planned']}; held (plant gave no fresh "
-             f"measurement): {s['held_samples']}; valve sent to null at the end: {'yes' if s['valve_to_null'] else 'no (simulated plant)'}",
+             f"measurement): {s['held_samples']}; valve sent to null at the end: {'yes' if s['valve_to_null'] else 'no (a simulated plant has no valve to hold)'}",
              f"* recording: `{s['recording']}` (pneusim-recording/1; `pneusim check` reads it)"]
     if s["plant"].startswith("replay:"):
         lines.append("* **open loop: the measurements are played back from the recording; the loop's commands "

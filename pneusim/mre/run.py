@@ -129,7 +129,7 @@ def run_mre(spec: dict, out_dir, *, plant: str | None = None, mode: str | None =
     pacing = pacing or make_pacing(mode, ts)
     budget = None
     if pacing.realtime:
-        budget = int(math.floor(float(m["overrun_budget"]) * (n + comp.n_warm)))
+        budget = int(math.floor(float(m["overrun_budget"]) * n))
     pl.reset(comp.x0_m, comp.u_init_V, t0_s=-comp.n_warm * ts)
     writer = RecordingWriter(rec_path, meta, row_columns(closed, pred_cols))
     try:

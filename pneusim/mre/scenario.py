@@ -1,6 +1,6 @@
 """MRE files: which plant, controller, reference and online identifiers run in the loop.
 
-An MRE file is TOML (schema in ``scenarios/README.md``, example
+An MRE file is TOML (schema below and in the README section "Mixed-reality environment"; example
 ``scenarios/mre-paper1.toml``)::
 
     [mre]        name, title, description, plant ("sim"), mode ("fast" | "realtime"), duration_s,
@@ -28,7 +28,8 @@ import numpy as np
 from ..errors import InputFileError, PneusimError
 from ..tomlfile import read_toml
 
-__all__ = ["load_mre", "validate_mre", "MRE_MODES", "build_controller", "build_reference", "build_estimators"]
+__all__ = ["load_mre", "validate_mre", "MRE_MODES", "Components", "build_components", "build_controller",
+           "build_reference", "build_estimators"]
 
 MRE_MODES = ("fast", "realtime")
 _NUM = (int, float)

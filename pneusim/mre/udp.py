@@ -148,16 +148,18 @@ class UdpPlant:
         self._t0, self._k = float(t0_s), 0
         self.lost = self.late = 0
         self.rtt_s = []
-        # the loop's sample time travels in the echo field, the start time t0_s in the third value
-        self.sock.send(pack(HELLO, 0, time.perf_counter(), self.sample_time_s, position_m, command_V, t0_s))
-        deadline = time.perf_counter() + self.connect_timeout_s
-        while True:
-            msg = self._recv(max(0.0, deadline - time.perf_counter()))
-            if msg is None:
+        # the loop's sample time travels in the echo field, the start time t0_s in the third value;
+        # HELLO is repeated every 0.2 s (a datagram may be lost) until READY or the timeout
+        stamp = time.perf_counter()          # the same in every repeat: the server answers a repeat once more
+        deadline = stamp + self.connect_timeout_s
+        msg = None
+        while msg is None or msg[0] != READY:
+            rest = deadline - time.perf_counter()
+            if rest <= 0:
                 raise PneusimError(f"{self.where}: no rig server answered within {self.connect_timeout_s:g} s "
                                    "(start one with: pneusim serve-rig --rig RIG --port PORT)")
-            if msg[0] == READY:
-                break
+            self.sock.send(pack(HELLO, 0, stamp, self.sample_time_s, position_m, command_V, t0_s))
+            msg = self._recv(min(0.2, rest))
         if msg[1] & FLAG_SAMPLE_TIME:
             raise PneusimError(f"{self.where}: the rig server's sample time differs from the loop's "
                                f"{self.sample_time_s:g} s; serve the same rig")
@@ -260,6 +262,8 @@ class RigServer:
         self.peer = None
         self._expected = 0
         self._last_rx = 0.0
+        self._hello_stamp = None
+        self._ready = b""
 
     def _send(self, kind, seq, t_echo, m: Measurement, flags=0):
         if kind == MEAS and seq in self.drop_replies:
@@ -280,6 +284,9 @@ class RigServer:
             return
         kind, _flags, seq, t_sent, echo, v0, v1, v2 = msg
         now = time.perf_counter()
+        if kind == HELLO and self.active and peer == self.peer and t_sent == self._hello_stamp:
+            self.sock.sendto(self._ready, peer)     # a repeated HELLO: the same READY again, no second reset
+            return
         if kind == HELLO:
             self.peer = peer
             if abs(echo - self.plant.sample_time_s) > 1e-9 * self.plant.sample_time_s:
@@ -292,7 +299,10 @@ class RigServer:
             self.active, self._expected, self._last_rx = True, 0, now
             self.stats.sessions += 1
             self.stats.events.append(f"session {self.stats.sessions} from {peer[0]}:{peer[1]}")
-            self._send(READY, 0, t_sent, self.plant.measure())
+            m = self.plant.measure()
+            self._hello_stamp = t_sent
+            self._ready = pack(READY, 0, time.perf_counter(), t_sent, m.position_m, m.pressure_a_Pa, m.pressure_b_Pa)
+            self.sock.sendto(self._ready, peer)
             return
         if not self.active or peer != self.peer:
             self.stats.stray += 1

@@ -117,8 +117,9 @@ def prepare_ablation(sweep: dict, table: dict, path) -> dict:
                 p[f"identifiers.{i}.enabled"] = True
             cases.append((dict(case, part="physical"), p))
 
+    ref_phys = [i_nom] if phys_levels else None       # no physical levels: no physical fit at all
     add({"row": "ideal rig", "group": "reference", "effect": "", "level": "", "source": "the rig file, sensor "
-         "noise only"}, [], physical=[i_nom])
+         "noise only"}, [], physical=ref_phys)
     raw_cases = table.get("cases", [])
     if not isinstance(raw_cases, list) or not raw_cases:
         _fail(path, "ablation.cases", "expected at least one [[ablation.cases]] table")
@@ -156,7 +157,7 @@ def prepare_ablation(sweep: dict, table: dict, path) -> dict:
         if not isinstance(effects, list) or not effects or not all(isinstance(e, str) for e in effects):
             _fail(path, f"{where}.effects", "expected a non-empty list of 'NAME:PARAM=VALUE,...' strings")
         add({"row": comb["name"], "group": "combination", "effect": "", "level": "", "effects": effects,
-             "source": comb.get("source", "")}, effects, physical=[i_nom])
+             "source": comb.get("source", "")}, effects, physical=ref_phys)
     rig = table.get("realistic_rig")
     if rig is not None:
         if not isinstance(rig, str):
@@ -172,7 +173,7 @@ def prepare_ablation(sweep: dict, table: dict, path) -> dict:
             _fail(path, "ablation.realistic_rig", str(exc))
         add({"row": f"realistic rig ({rrig.name})", "group": "reference", "effect": "", "level": "",
              "effects": list(rrig.effects), "source": f"{rrig.name}: every value justified in its rig file"},
-            [], physical=[i_nom], rig=rig_path)
+            [], physical=ref_phys, rig=rig_path)
     # check every point against the scenario now (a bad effect names the ablation file, before any run)
     for case, point in cases:
         trial = copy.deepcopy(spec)

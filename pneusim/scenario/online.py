@@ -210,7 +210,7 @@ def simulate_online(rig: Rig, experiment: Experiment, estimators: dict[str, Pape
     plant.reset(x0, ctrl.command(-n_warm * ts, first, x0) if closed else first, t0_s=-n_warm * ts)
     # the one sample loop of pneusim.mre, here as fast as possible (no pacing)
     res = run_loop(plant, experiment.signal, ctrl if closed else None, estimators, to_output, to_input,
-                   n_warm=n_warm, status=StatusLine(interval_s=0.5) if progress else None)
+                   n_warm=n_warm, status=StatusLine(interval_s=0.5, label="online run") if progress else None)
     if not res.completed:
         if res.stop_reason.startswith("interrupted"):
             raise KeyboardInterrupt

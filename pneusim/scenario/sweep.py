@@ -26,11 +26,13 @@ with its error and the sweep goes on.  The table (``OUT/sweep.csv`` and
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import hashlib
 import itertools
 import json
 import math
+import multiprocessing
 import os
 import time
 import tomllib
@@ -218,10 +220,48 @@ def _dask_client(dask: str, workers: int):
                            "expected tcp://HOST:PORT of a running scheduler, or 'local'") from None
 
 
-def _executor_map(tasks, workers: int, dask: str | None, progress: bool, func=None, lost=None, desc: str = "sweep"):
+_BLAS_LIMIT = []
+
+
+def _worker_init():
+    """In each local worker process: one BLAS thread, the workers are the parallelism (BLAS threads
+    of every worker would share the same cores and spin on them)."""
+    from threadpoolctl import threadpool_limits
+
+    _BLAS_LIMIT.append(threadpool_limits(1))   # kept: the limit holds for the worker's life
+
+
+def _warm_up(task) -> None:
+    """Before local workers fork: import what a run needs and build the model of the scenario's effects with
+    its compiled kernels, here, once.  The workers fork at their first task and share all that (copy-on-write)
+    instead of each importing, building and generating it again."""
+    spec, base, params, seed, _ = task
+    try:
+        from ..plant import SimulatedPlant
+        from ..rig import load_rig
+        from .runner import merged_effects, run_scenario  # noqa: F401 - importing is part of the warm-up
+
+        spec = _apply(spec, base, params, seed)
+        rig = load_rig(spec["rig"]["name"])
+        if spec["rig"]["overrides"]:
+            rig = rig.with_params(spec["rig"]["overrides"])
+        SimulatedPlant(rig, merged_effects(rig, spec["rig"]["effects"]))
+    except Exception:  # noqa: BLE001 - only a warm-up: the run itself reports what is wrong with it
+        pass
+
+
+def _local_pool(workers: int):
+    from concurrent.futures import ProcessPoolExecutor
+
+    return ProcessPoolExecutor(max_workers=workers, initializer=_worker_init)
+
+
+def _executor_map(tasks, workers: int, dask: str | None, progress: bool, func=None, lost=None, desc: str = "sweep",
+                  pool=None):
     """Yield the result of ``func(*task)`` (default :func:`run_one`) for every task, as they complete; a
     worker that does not return gives ``lost(task, exc)`` (default :func:`_lost_run`) instead of stopping
-    the sweep.  ``pneusim diagnose`` runs its recordings here too."""
+    the sweep.  ``pneusim diagnose`` runs its recordings here too.  ``pool``: a running
+    :func:`_local_pool` to use (and leave running) instead of starting one for ``workers``."""
     func = func or run_one
     lost = lost or _lost_run
     bar = None
@@ -252,9 +292,11 @@ def _executor_map(tasks, workers: int, dask: str | None, progress: bool, func=No
                 if bar:
                     bar.update()
         else:
-            from concurrent.futures import ProcessPoolExecutor, as_completed as cf_completed
+            from concurrent.futures import as_completed as cf_completed
 
-            with ProcessPoolExecutor(max_workers=workers) as pool:
+            with contextlib.ExitStack() as stack:
+                if pool is None:
+                    pool = stack.enter_context(_local_pool(workers))
                 futures = {pool.submit(func, *t): t for t in tasks}
                 for fut in cf_completed(futures):
                     try:
@@ -298,16 +340,26 @@ def run_sweep(sweep: dict, out_dir, workers: int | None = None, dask: str | None
         todo.append((sweep["scenario"], sweep["base"], params, seed, sweep["variants"]))
     if workers is None:
         workers = os.cpu_count() or 1
-    started = time.perf_counter()
-    for res in _executor_map(todo, workers, dask, progress):
-        (out / "runs" / f"{res['run_id']}.json").write_text(json.dumps(res, allow_nan=False, default=str))
-    wall = time.perf_counter() - started
-    results = [json.loads((out / "runs" / f"{run_id(p, s)}.json").read_text()) for p, s in runs]
-    table = build_table(results)
-    write_table(table, out)
-    from .sweep_plots import summary_plots
-    varied = list(dict.fromkeys(list(sweep["grid"]) + list(sweep["random"]) + [k for p in sweep["points"] for k in p]))
-    summary_plots(table, varied, out)
+    local = not dask and workers > 0
+    with contextlib.ExitStack() as stack:
+        pool = stack.enter_context(_local_pool(workers)) if local else None
+        started = time.perf_counter()
+        if local and todo and multiprocessing.get_start_method() == "fork":
+            _warm_up(todo[0])
+        for res in _executor_map(todo, workers, dask, progress, pool=pool):
+            (out / "runs" / f"{res['run_id']}.json").write_text(json.dumps(res, allow_nan=False, default=str))
+        wall = time.perf_counter() - started
+        results = [json.loads((out / "runs" / f"{run_id(p, s)}.json").read_text()) for p, s in runs]
+        table = build_table(results)
+        write_table(table, out)
+        from .sweep_plots import summary_plots
+        varied = list(dict.fromkeys(list(sweep["grid"]) + list(sweep["random"])
+                                    + [k for p in sweep["points"] for k in p]))
+        if pool is not None and workers > 1 and len(varied) > 1:
+            # one figure per worker: drawing is the largest part of the sweep that is not the runs
+            list(pool.map(summary_plots, [table] * len(varied), [[k] for k in varied], [out] * len(varied)))
+        else:
+            summary_plots(table, varied, out)
     if sweep.get("ablation"):
         from .ablation import write_ablation_report
         write_ablation_report(table, sweep, out)

@@ -11,14 +11,14 @@
   callbacks that call the C code CasADi generated for the model, reading and
   writing SUNDIALS' own vectors and dense (column-major, like CasADi's) matrix:
   no Python and no copy per evaluation.
-* At a change of the held input the integration stops exactly at the sample
-  boundary (``CVodeSetStopTime``) and goes on from there with the BDF history
-  kept: only the held input in the right-hand side changes.  CVODE's local error
-  test sees the kink in the solution and cuts the step (and order) if it must;
-  the Jacobian is refreshed by CVODE when Newton converges slowly.  Restarting
-  (``CVodeReInit``) at every change, as before, costs an initial-step estimate and
-  a climb from order 1 with small steps at every sample (see
-  ``benchmarks/test_bench_simulator.py`` for steps and evaluations per sample).
+* The held input jumps at sample boundaries, so the solution has a kink there:
+  the integration stops exactly at the boundary (``CVodeSetStopTime``) and, by
+  default, restarts the BDF history there (``CVodeReInit``, order 1).  Keeping
+  the history across the kink instead (only the held input changing) was
+  measured: fewer steps on paper 1, more on paper 2, and 2-5x the position error
+  at the same tolerance, so it is not the default (see :data:`POLICIES` and
+  ``benchmarks/test_bench_simulator.py``, which prints steps and evaluations per
+  sample of every policy).
 * :class:`SampleLoop` runs :func:`pneusim.simulate.simulate`'s sample loop
   (sensors, proportional controller, zero-order hold, transport delay) in C on
   an :class:`Integrator`, for the built-in parts; the sample-by-sample plant
@@ -37,14 +37,14 @@ import numpy as np
 from scikits.odes.sundials.c_sundials cimport (N_Vector, sunrealtype, SUNContext, SUNContext_Create,
                                                SUNContext_Free, SUNMatrix, SUNLinearSolver, N_VDestroy,
                                                SUNMatDestroy, SUNLinSolFree)
-from scikits.odes.sundials.c_nvector_serial cimport N_VNew_Serial, N_VGetArrayPointer_Serial, N_VEnableFusedOps_Serial
+from scikits.odes.sundials.c_nvector_serial cimport N_VNew_Serial, N_VGetArrayPointer_Serial
 from scikits.odes.sundials.c_sunmatrix cimport SUNDenseMatrix, SUNDenseMatrix_Data
 from scikits.odes.sundials.c_sunlinsol cimport SUNLinSol_Dense
 from scikits.odes.sundials.c_cvode cimport (CVodeCreate, CVodeInit, CVodeReInit, CVodeSVtolerances,
                                             CVodeSetUserData, CVodeSetErrHandlerFn, CVodeSetMaxNumSteps,
                                             CVodeSetLinearSolver, CVodeSetJacFn, CVodeSetStopTime,
-                                            CVodeSetInitStep, CVodeGetLastStep, CVodeGetActualInitStep, CVode, CVodeFree,
-                                            CV_BDF, CV_NORMAL, CV_ONE_STEP, CVodeGetLastOrder, CVRhsFn, CVLsJacFn, CVErrHandlerFn,
+                                            CVodeSetInitStep, CVodeGetActualInitStep, CVode, CVodeFree,
+                                            CV_BDF, CV_NORMAL, CVRhsFn, CVLsJacFn, CVErrHandlerFn,
                                             CVodeGetNumSteps, CVodeGetNumRhsEvals, CVodeGetNumErrTestFails,
                                             CVodeGetNumNonlinSolvConvFails, CVodeGetNumJacEvals)
 
@@ -53,11 +53,18 @@ cnp.import_array()
 ctypedef long long casadi_int
 ctypedef int (*casadi_fn)(const double** arg, double** res, casadi_int* iw, double* w, int mem) noexcept nogil
 
-#: what happens at a change of the held input (``Integrator.restart``)
-KEEP_HISTORY = 0      # stop at the boundary, go on with the BDF history (the default)
-REINIT = 1            # CVodeReInit: order 1, CVODE's own initial step estimate
-REINIT_LAST_STEP = 2  # CVodeReInit with the last step size as the initial step
-REINIT_LAST_H0 = 3
+#: What happens at a change of the held input (``Integrator.restart``).  The input jumps at a
+#: sample boundary, so the solution has a kink there; the integration always stops exactly at the
+#: boundary (``CVodeSetStopTime``).  ``benchmarks/test_bench_simulator.py`` prints steps, evaluations
+#: and error of each policy on both rigs.
+REINIT = 0            # the default: CVodeReInit at the boundary (order 1, CVODE's initial-step estimate)
+REINIT_REUSE_H0 = 1   # CVodeReInit with the previous restart's first step (as CVODES' adjoint checkpoints
+                      # do): no estimate (~2 rhs evaluations less a restart), but that step is then the
+                      # first estimate's for the whole run, however the motion changes
+KEEP_HISTORY = 2      # no restart: the BDF history from before the kink predicts the first step; fewer
+                      # steps on paper 1 but 2-5x the position error at the same tolerance (the error
+                      # test is fooled by the kink), and more steps on paper 2
+POLICIES = {"reinit": REINIT, "reinit-reuse-h0": REINIT_REUSE_H0, "keep-history": KEEP_HISTORY}
 
 
 cdef struct Kernel:
@@ -142,7 +149,7 @@ cdef class Integrator:
     cdef SUNLinearSolver LS
     cdef readonly int n
     cdef readonly bint initialized
-    cdef public int restart          # KEEP_HISTORY, REINIT or REINIT_LAST_STEP
+    cdef public int restart          # one of POLICIES' values
     cdef object keep
     cdef long totals[5]
 
@@ -158,7 +165,7 @@ cdef class Integrator:
         self.pb.jac.iw = NULL
         self.pb.jac.w = NULL
 
-    def __init__(self, rhs, jac, double[::1] params, int n, double rtol, double[::1] atol, long max_steps=50000, bint fused_ops=True):
+    def __init__(self, rhs, jac, double[::1] params, int n, double rtol, double[::1] atol, long max_steps=50000):
         cdef int i
         if atol.shape[0] != n:
             raise ValueError(f"{n} absolute tolerances expected, got {atol.shape[0]}")
@@ -175,8 +182,6 @@ cdef class Integrator:
         self.atol_v = N_VNew_Serial(n, self.ctx)
         if self.y == NULL or self.atol_v == NULL:
             raise MemoryError()
-        if fused_ops:
-            N_VEnableFusedOps_Serial(self.y, 1)   # CVODE clones its work vectors from y
         for i in range(n):
             N_VGetArrayPointer_Serial(self.y)[i] = 0.0
             N_VGetArrayPointer_Serial(self.atol_v)[i] = atol[i]
@@ -194,7 +199,7 @@ cdef class Integrator:
             raise MemoryError()
         _check(CVodeSetLinearSolver(self.mem, self.LS, self.A), "CVodeSetLinearSolver")
         _check(CVodeSetJacFn(self.mem, <CVLsJacFn> _jac), "CVodeSetJacFn")
-        self.restart = KEEP_HISTORY
+        self.restart = REINIT
         self.initialized = False
         for i in range(5):
             self.totals[i] = 0
@@ -228,16 +233,20 @@ cdef class Integrator:
         return out
 
     def rhs(self, double[::1] x, double u):
-        """``f(x, u, p)`` through the callback CVODE calls (with the input ``u``; the held input is kept)."""
+        """``f(x, u, p)`` through the right-hand-side callback CVODE calls (the held input is kept)."""
         cdef double held = self.pb.u
-        out = np.empty(self.n)
-        cdef double[::1] o = out
+        cdef N_Vector v = N_VNew_Serial(self.n, self.ctx)
+        cdef N_Vector out_v = N_VNew_Serial(self.n, self.ctx)
+        cdef int flag
         self._check_n(x)
+        memcpy(N_VGetArrayPointer_Serial(v), &x[0], self.n * sizeof(double))
         self.pb.u = u
-        self.pb.rhs.arg[0] = &x[0]
-        self.pb.rhs.res[0] = &o[0]
-        flag = self.pb.rhs.fn(self.pb.rhs.arg, self.pb.rhs.res, self.pb.rhs.iw, self.pb.rhs.w, 0)
+        flag = _rhs(0.0, v, out_v, &self.pb)
         self.pb.u = held
+        out = np.empty(self.n)
+        memcpy(<double*> cnp.PyArray_DATA(out), N_VGetArrayPointer_Serial(out_v), self.n * sizeof(double))
+        N_VDestroy(v)
+        N_VDestroy(out_v)
         return out if flag == 0 else None
 
     def jacobian(self, double[::1] x, double u):
@@ -289,11 +298,9 @@ cdef class Integrator:
         if u != self.pb.u:
             self.pb.u = u
             if self.restart != KEEP_HISTORY:
-                if self.restart == REINIT_LAST_STEP:
-                    CVodeGetLastStep(self.mem, &h)
-                    CVodeSetInitStep(self.mem, h)
-                elif self.restart == REINIT_LAST_H0:
-                    CVodeGetActualInitStep(self.mem, &h)
+                # restart the BDF history at the kink; CVodeReInit keeps the initial step set last
+                if self.restart == REINIT_REUSE_H0:
+                    CVodeGetActualInitStep(self.mem, &h)   # the previous restart's first step
                     CVodeSetInitStep(self.mem, h)
                 self._bank()
                 flag = CVodeReInit(self.mem, t_now, self.y)
@@ -317,28 +324,6 @@ cdef class Integrator:
         self.pb.message[0] = 0
         flag = self._advance(t_now, t_stop, u, &t_reached)
         return flag, t_reached, self.message(flag)
-
-    def trace(self, double t_now, double t_stop, double u):  # DEBUG-TRACE (temporary)
-        cdef sunrealtype tr = t_now, h = 0
-        cdef int q = 0, flag
-        out = []
-        if u != self.pb.u:
-            self.pb.u = u
-            if self.restart != KEEP_HISTORY:
-                if self.restart == REINIT_LAST_STEP:
-                    CVodeGetLastStep(self.mem, &h)
-                    CVodeSetInitStep(self.mem, h)
-                self._bank()
-                CVodeReInit(self.mem, t_now, self.y)
-        CVodeSetStopTime(self.mem, t_stop)
-        while True:
-            flag = CVode(self.mem, t_stop, self.y, &tr, CV_ONE_STEP)
-            CVodeGetLastStep(self.mem, &h)
-            CVodeGetLastOrder(self.mem, &q)
-            out.append((tr, h, q, flag))
-            if flag != 0 or flag < 0:
-                break
-        return out
 
     cdef str message(self, int flag):
         return self.pb.message.decode("utf-8", "replace") if flag < 0 and self.pb.message[0] != 0 else ""

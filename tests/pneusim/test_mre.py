@@ -7,7 +7,6 @@ import pytest
 
 from pneusim.cli import main
 from pneusim.controller import PIDController, ProportionalController
-from pneusim.errors import PneusimError
 from pneusim.mre.run import run_mre
 from pneusim.mre.scenario import validate_mre
 from pneusim.plant import SimulatedPlant
@@ -33,7 +32,7 @@ def spec(**mre):
 
 @pytest.fixture(scope="module")
 def fast_run(tmp_path_factory):
-    return run_mre(spec(), tmp_path_factory.mktemp("fast"), mode="fast", report=False)
+    return run_mre(spec(), tmp_path_factory.mktemp("fast"), mode="fast")
 
 
 def _same_except_timing(a, b, n=None):
@@ -56,6 +55,18 @@ def test_paced_and_fast_loops_give_the_same_recording_and_model(fast_run, tmp_pa
         f, lv = fast_run.summary["identified"][name], live.summary["identified"][name]
         assert f["transfer_function"] == lv["transfer_function"]
         assert f["theta"] == lv["theta"]
+
+
+def test_report_prints_the_identified_transfer_functions_and_timing(fast_run):
+    text = (fast_run.out_dir / "report.md").read_text(encoding="utf-8")
+    tf = fast_run.summary["identified"]["RLS ARMA order 4"]["transfer_function"]
+    assert tf.startswith("G(z) = (") and " z^4 " in tf and tf in text
+    assert "yhat_rls_arma_order_4_h5_cm" in text and "computation per sample" in text
+    for fig in ("response.png", "predictions.png", "coefficients.png", "timing.png"):
+        assert (fast_run.out_dir / fig).stat().st_size > 1000
+    theta = np.load(fast_run.out_dir / "coefficients.npz")["theta_rls_arma_order_4"]
+    assert theta.shape == (300, 8)
+    np.testing.assert_array_equal(theta[-1], fast_run.summary["identified"]["RLS ARMA order 4"]["theta"])
 
 
 class _Interrupting:
@@ -194,3 +205,63 @@ def test_unreachable_or_unknown_plants_give_one_clear_line(tmp_path, capsys, pla
     assert main(["mre", str(path), "--plant", plant, "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and words in err
+
+
+class _FakeClock:
+    """perf_counter and sleep of a machine whose sleeps overshoot by 60 us and whose clock reads cost 1 us."""
+
+    def __init__(self):
+        self.now, self.sleeps = 100.0, []
+
+    def perf_counter(self):
+        self.now += 1e-6
+        return self.now
+
+    def sleep(self, dt):
+        self.sleeps.append(dt)
+        self.now += dt + 60e-6
+
+
+@pytest.mark.parametrize("kind", ["realtime", "sleep"])
+def test_pacing_keeps_absolute_deadlines_through_a_stall(monkeypatch, kind):
+    from pneusim.mre import clock
+
+    fake = _FakeClock()
+    monkeypatch.setattr(clock.time, "perf_counter", fake.perf_counter)
+    monkeypatch.setattr(clock.time, "sleep", fake.sleep)
+    pacing = clock.make_pacing(kind, 0.001)
+    t0 = pacing.start()
+    late = []
+    for k in range(200):
+        deadline = pacing.wait(k)
+        assert deadline == t0 + k * 0.001                  # no drift: deadlines never move
+        late.append(fake.now - deadline)
+        fake.now += 200e-6                                  # the sample's work
+        if k == 50:
+            fake.now += 5.5e-3                              # one stall of 5.5 samples
+    late = np.array(late)
+    assert late.min() >= 0.0
+    if kind == "realtime":                                  # the busy wait absorbs the sleep's overshoot
+        assert late[:51].max() < 3e-6 and late[-100:].max() < 3e-6
+    else:                                                   # plain sleep wakes up late by its overshoot
+        assert late[:51].max() > 50e-6 and late[-100:].max() < 70e-6
+    # after the stall the loop runs at once until it has caught up, then waits again
+    assert late[51] > 4e-3 and late[60] < 3e-3 and late[70] < 70e-6
+
+
+def test_status_line_shows_samples_overruns_lateness_and_one_step_error():
+    import io
+
+    from pneusim.mre.clock import RealtimePacing
+    from pneusim.mre.loop import StatusLine, run_loop
+    from pneusim.mre.scenario import build_components
+
+    comp = build_components(spec(duration_s=0.1))
+    plant = SimulatedPlant(comp.rig, seed=3)
+    plant.reset(comp.x0_m, comp.u_init_V, t0_s=0.0)
+    stream = io.StringIO()
+    run_loop(plant, comp.reference, comp.controller, comp.estimators, comp.to_output, comp.to_input,
+             pacing=RealtimePacing(0.001), status=StatusLine(stream, interval_s=0.0))
+    text = stream.getvalue()
+    assert "mre: 100/100 samples (100 %), overruns" in text and "lateness p50" in text
+    assert "1-step error (RLS ARMA order 4)" in text

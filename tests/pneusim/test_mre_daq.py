@@ -177,3 +177,11 @@ def test_gain_given_twice_must_agree(tmp_path):
     path.write_text(text, encoding="utf-8")
     with pytest.raises(InputFileError, match="disagrees with"):
         load_rig(path)
+
+
+def test_daq_section_survives_writing_the_rig_back(tmp_path):
+    from pneusim.rig import write_rig
+
+    for rig in (load_rig("paper1-mre"), load_rig(_rig_file(tmp_path))):
+        back = load_rig(write_rig(rig, tmp_path / "back.toml"))
+        assert back.daq == rig.daq

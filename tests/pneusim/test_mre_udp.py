@@ -14,6 +14,28 @@ from pneusim.rig import load_rig
 from pneusim.controller import ProportionalController
 
 N = 160
+MRE_TEXT = """
+[mre]
+name = "t"
+seed = 2
+duration_s = 0.2
+warmup_s = 0.0
+[rig]
+name = "paper1-mre"
+[controller]
+kind = "proportional"
+kp_V_per_m = 40.0
+[reference]
+kind = "steps"
+unit = "m"
+low = 0.02
+high = 0.05
+hold_s = [0.05, 0.1]
+[[identifiers]]
+name = "o3"
+kind = "rls"
+order = 3
+"""
 
 
 @pytest.fixture
@@ -123,8 +145,7 @@ def test_serve_rig_command_line_session_over_udp(tmp_path):
     try:
         assert "on udp 127.0.0.1" in srv.stdout.readline()
         mre = tmp_path / "m.toml"
-        from tests.pneusim.test_mre import MRE_TEXT
-        mre.write_text(MRE_TEXT.replace('name = "t"', 'name = "t"\nseed = 2'), encoding="utf-8")
+        mre.write_text(MRE_TEXT, encoding="utf-8")
         from pneusim.cli import main
         assert main(["mre", str(mre), "--plant", f"udp:127.0.0.1:{port}", "--fast", "--out", str(tmp_path / "u"),
                      "--no-report"]) == 0
@@ -138,3 +159,20 @@ def test_serve_rig_command_line_session_over_udp(tmp_path):
     u, loc = read_recording(tmp_path / "u" / "recording.csv"), read_recording(tmp_path / "s" / "recording.csv")
     np.testing.assert_array_equal(u.position_m, loc.position_m)
     np.testing.assert_array_equal(u.pressure_a_Pa, loc.pressure_a_Pa)
+
+
+def test_a_repeated_hello_gets_the_same_ready_without_a_second_reset(server):
+    import socket as so
+
+    from pneusim.mre.udp import HELLO, READY, unpack
+
+    s = so.socket(so.AF_INET, so.SOCK_DGRAM)
+    s.settimeout(2.0)
+    hello = pack(HELLO, 0, 123.456, 0.001, 0.02, 5.0, 0.0)
+    s.sendto(hello, server.address)
+    first = s.recv(256)
+    s.sendto(hello, server.address)                    # as if the READY had been lost
+    second = s.recv(256)
+    assert first == second and unpack(first)[0] == READY
+    assert server.stats.sessions == 1
+    s.close()

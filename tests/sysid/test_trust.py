@@ -114,13 +114,13 @@ def test_recursive_update_names_the_bad_argument(args, name):
 
 
 def test_models_print_like_matlab(loop_data):
-    est = sysid.load_recording(loop_data).detrend()[:6000]
-    m = sysid.n4sid(est)                                       # order 7: matrices summarised
+    est = sysid.load_recording(loop_data).detrend()[:3000]
+    m = sysid.n4sid(est, 7, weighting="moesp", horizon=10)     # order 7: matrices summarised
     text = repr(m)
     assert text.startswith("Discrete-time identified state-space model:")
     assert "Sample time: 0.01 seconds" in text and "Fit to estimation data:" in text
     assert "A: 7x7 matrix" in text and len(text.splitlines()) < 40
-    g = sysid.tfest(est[:1500], 2, 1)
+    g = sysid.tfest(est[:600], 2, 1, iodelay=0.03)
     gt = str(g)
     assert gt.startswith("Continuous-time identified transfer function.") and "Input delay:" in gt
     assert len(gt.splitlines()) < 25
@@ -144,3 +144,19 @@ def test_delay_is_carried_or_refused_in_conversions():
     dz = sysid.to_scipy(g, discrete=True)                      # exact ZOH, delay as 5 samples
     _, yimp = signal.dimpulse(dz, n=8)
     assert np.all(np.ravel(yimp)[:6] == 0.0) and np.ravel(yimp)[6] > 0
+
+
+def test_n4sid_keeps_an_unstable_system_the_data_show_and_says_so():
+    """Poles 1.01 and 0.7 over 400 samples (growth 53x): the reflected twin simulates the data at -38 %,
+    so the unstable estimate is kept (the data say so), with a warning; enforce_stability=True reflects."""
+    rng = np.random.default_rng(3)
+    u = np.sign(rng.standard_normal(400))
+    y = signal.lfilter([0, 1.0, 0.5], [1, -1.71, 0.707], u) + 0.01 * rng.standard_normal(400)
+    d = sysid.iddata(y, u, 0.01)
+    with pytest.warns(sysid.SysidWarning, match=r"unstable: a pole has \|z\| = 1.01"):
+        m = sysid.n4sid(d, 2)
+    np.testing.assert_allclose(np.sort(np.abs(m.poles())), [0.7, 1.01], atol=1e-3)
+    assert not m.report["stability_enforced"]
+    assert np.max(np.abs(sysid.n4sid(d, 2, enforce_stability=True).poles())) < 1.0
+    with pytest.raises(sysid.SysidError, match="weighting must be"):
+        sysid.n4sid(d, 2, weighting="cva")
