@@ -1,6 +1,6 @@
-"""Build the two compiled helpers: CVODE callbacks that call CasADi-generated C code
-(``_cvode_compiled``, the simulator) and a CVODES driver with forward sensitivities
-(``_cvodes_sensitivity``, the fit).
+"""Build the two compiled helpers: a CVODE driver on CasADi-generated C code with the sample loop
+(``_cvode_compiled``, the simulator; it uses scikits.odes' Cython declarations of SUNDIALS) and a
+CVODES driver with forward sensitivities (``_cvodes_sensitivity``, the fit).
 
 scikits.odes ships its Cython declarations (.pxd) but not the small
 ``sundials_config.pxi`` they include; it is regenerated here from the installed

@@ -43,7 +43,7 @@ PRACTICE = ROOT.parent / "shared" / "practice"
 CASE = "practice_07.csv"
 RUN_FULL_DIAGNOSIS = False       # True: run pneusim.diagnosis.diagnose on the same slice (minutes)
 
-rec = read_recording(PRACTICE / CASE).slice(0.0, 24.0)   # the first 24 s keep the fit short
+rec = read_recording(PRACTICE / CASE).slice(0.0, 16.0)   # the first 16 s keep the fit short
 rig = load_rig(rec.rig)
 print(summarize(rec))
 
@@ -53,7 +53,7 @@ print(summarize(rec))
 # first 70 % and validates on the last 30 %, which it never saw.
 
 # %%
-nominal = fit_recording(rec, rig, validation_fraction=0.3, starts=1)
+nominal = fit_recording(rec, rig, validation_fraction=0.3, starts=1, max_iter=10)
 print(f"nominal validation fit {nominal.fit_percent:.2f} %")
 for name, p in nominal.parameters.items():
     print(f"  {name:40s} {p.start:10.4g} -> {p.estimate:10.4g} +- {p.std:.2g}")

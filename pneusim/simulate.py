@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Sequence
 
 import numpy as np
@@ -163,7 +164,7 @@ def simulate(rig: Rig, experiment: Experiment, effects: Sequence[Effect] = (), *
     overrides = {k: v for k, v in getattr(rig, "overrides", {}).items() if k != "sample_time_s"}
     meta["rig_overrides"] = ";".join(f"{k}={float(v)!r}" for k, v in sorted(overrides.items())) or "none"
     if rig.source and not getattr(rig, "is_shipped", True):
-        meta["rig_file"] = str(rig.source)
+        meta["rig_file"] = str(Path(rig.source).resolve())   # --like finds it from any folder
     meta.update({k: str(v) for k, v in experiment.metadata.items()})
     recording = Recording(
         time_s=np.arange(n) * ts, valve_cmd_V=commands, position_m=positions,

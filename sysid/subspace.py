@@ -217,10 +217,11 @@ class N4SID:
         w = Rx - bs @ uc[None, :]
         v = Ry - (float(uc @ Ry) / float(uc @ uc)) * uc if self.feedthrough else Ry
         Svv = float(v @ v) / v.size
-        K = _kalman_gain(A, Cm, w, v)
+        noise = _noise_covariances(w, v)
+        K = _kalman_gain(A, Cm, *noise)
         Bs = bs.reshape(nx, 1)
         Ds = float(uc @ Ry) / float(uc @ uc) if self.feedthrough else 0.0
-        return A, Cm, K, dict(s=s, Svv=Svv, B=Bs, D=np.array([[Ds]]), report=dict(gamma=Gam))
+        return A, Cm, K, dict(s=s, Svv=Svv, B=Bs, D=np.array([[Ds]]), noise=noise, report=dict(gamma=Gam))
 
     def _ssarx(self, y, u, nx, nmax, i):
         """ARX-predictor-based weighting (SSARX / PBSID): consistent with feedback in the data.
@@ -265,7 +266,9 @@ class N4SID:
         A, Bs, K = th2[:, :nx], th2[:, nx:nx + 1], th2[:, nx + 1:nx + 2]
         Ds = np.array([[th1[nx] if self.feedthrough else 0.0]])
         Svv = float(e @ e) / e.size
-        return A, Cm, K, dict(s=s, Svv=Svv, B=Bs, D=Ds, report=dict(arx_order=p))
+        w = X[:, 1:] - A @ X[:, :-1] - Bs @ ut[None, :-1]   # K e(t) is the process noise here
+        return A, Cm, K, dict(s=s, Svv=Svv, B=Bs, D=Ds, noise=_noise_covariances(w, e[:-1]),
+                              report=dict(arx_order=p))
 
     # --------------------------------------------------------------- completion
     def _complete(self, name, A, Cm, K, y, u, extra, reflect):
@@ -274,6 +277,8 @@ class N4SID:
         nx = A.shape[0]
         if reflect:
             A = _reflect_unstable(A)
+        if np.any(np.abs(np.linalg.eigvals(A - K @ Cm)) >= 1.0):
+            K = _kalman_gain(A, Cm, *extra["noise"])      # the Kalman gain of this A: stable predictor
         if np.any(np.abs(np.linalg.eigvals(A - K @ Cm)) >= 1.0):
             K = np.zeros((nx, 1))  # keep the predictor stable; fall back to output error
         bdx = _input_matrices(A, Cm, K, y, u, self.feedthrough)
@@ -295,20 +300,20 @@ class N4SID:
                     extra_report=extra["report"])
 
 
-def _kalman_gain(A, C, w, v):
-    """Steady-state Kalman gain from the residual covariances of the state and output equations.
+def _noise_covariances(w, v):
+    """``(Q, R, S)``: covariances of the state-equation residuals ``w`` (n x m), the output residuals ``v``."""
+    m = v.size
+    return (w @ w.T) / m, float(v @ v) / m, (w @ v / m).reshape(-1, 1)
 
-    ``Q = cov(w)``, ``R = var(v)``, ``S = cov(w, v)``; ``P`` from the discrete Riccati equation and
-    ``K = (A P C^T + S)(C P C^T + R)^-1`` (Van Overschee & De Moor 1996, sec. 4.3.3), which makes
-    ``A - K C`` stable.  Falls back to ``S / R`` (``P = 0``) when the Riccati equation has no
-    stabilising solution.
+
+def _kalman_gain(A, C, Q, R, S):
+    """Steady-state Kalman gain for noise covariances ``Q = cov(w)``, ``R = var(v)``, ``S = cov(w, v)``.
+
+    ``P`` from the discrete Riccati equation and ``K = (A P C^T + S)(C P C^T + R)^-1``
+    (Van Overschee & De Moor 1996, sec. 4.3.3), which makes ``A - K C`` stable when a
+    stabilising solution exists; otherwise ``S / R`` (``P = 0``).
     """
     from scipy.linalg import solve_discrete_are
-    n = A.shape[0]
-    m = v.size
-    R = float(v @ v) / m
-    S = (w @ v / m).reshape(n, 1)
-    Q = (w @ w.T) / m
     try:
         P = solve_discrete_are(A.T, C.T, Q, np.array([[R]]), s=S)
         K = (A @ P @ C.T + S) / ((C @ P @ C.T).item() + R)

@@ -9,9 +9,11 @@ squares (continuity defects included as in the fit) is the candidate's likelihoo
 Lagrange-multiplier-like score of what switching the effect on can explain, in the units of the
 sensor noise.  A transport delay has no gradient; it is scanned over fixed delays instead.
 
-**Confirmation (test).** The leading candidates are refitted with the whole fit (effect and
-nominal parameters together, warm-started from the nominal fit).  A candidate is kept when both
-hold:
+**Confirmation (test).** The leading candidates (screening score above 1 % of the nominal residual
+sum of squares and above 5 % of the best score; with the leader, the effects whose signatures look
+like its own: dead time and spool lag, the three friction/force laws, offset and dead band, the
+slow pneumatic effects) are refitted with the whole fit (effect and nominal parameters together,
+warm-started from the nominal fit).  A candidate is kept when both hold:
 
 1. *estimation part*: the Bayesian information criterion drops,
    ``N ln(C0 / C1) > k ln N`` (``C`` the residual sum of squares in noise units, ``N`` residuals,
@@ -340,4 +342,5 @@ def effect_parameters(fit, effect_name: str) -> tuple[dict, dict]:
 
 
 def is_solver_failure(exc: Exception) -> bool:
-    return isinstance(exc, (PneusimError, SolverError, FloatingPointError, np.linalg.LinAlgError, ValueError))
+    return isinstance(exc, (PneusimError, SolverError, FloatingPointError, np.linalg.LinAlgError, ValueError,
+                            RuntimeError, ArithmeticError))

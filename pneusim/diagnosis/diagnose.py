@@ -40,6 +40,11 @@ MIN_SAMPLES = 500
 RELATIVE_SCORE = 0.05
 #: ... and it explains at least this fraction of the nominal residual sum of squares (in noise units)
 MIN_EXPLAINED = 0.01
+#: effects with look-alike signatures: when one leads the screening, the others are refitted too
+FAMILIES = (("transport_delay", "valve_dynamics"),
+            ("friction_asymmetry", "external_load", "pressure_dependent_friction"),
+            ("valve_offset", "valve_deadband"),
+            ("leakage", "heat_transfer", "supply_pressure_droop"))
 #: with no effect kept, a nominal residual rms above this multiple of the sensor noise is reported as
 #: an ``other`` finding (the nominal model is clearly short, but no vocabulary effect explains it)
 OTHER_RESIDUAL = 3.0
@@ -221,6 +226,15 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     top = best_variant[ranked[0]][0] if ranked else 0.0
     least = max(MIN_EXPLAINED * base["cost"], RELATIVE_SCORE * top, 0.0)
     leading = [k for k in ranked if best_variant[k][0] > least]
+    if leading:
+        # effects whose signatures look alike are confirmed together: a few trust-region steps cannot
+        # tell a spool lag from a dead time, or one friction law from another, but a whole refit can
+        leader = leading[0]
+        for family in FAMILIES:
+            if leader in family:
+                leading = [leader] + [k for k in family if k != leader and k in best_variant] + \
+                          [k for k in leading[1:] if k not in family]
+                break
     for eff in leading[:max(0, max_refits)]:
         score, c, s = best_variant[eff]
         trial = trials[eff]

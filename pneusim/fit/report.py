@@ -85,7 +85,11 @@ def write_fit_report(result: FitResult, directory) -> Path:
         if f"fit_percent_{name}" in v:
             lines.append(f"; {name}: {v[f'fit_percent_{name}']:.2f} %")
     noise = ", ".join(f"{k}: {val:.3g}" for k, val in result.sigma.items())
+    ratios = ", ".join(f"{k}: {val:.3f}" for k, val in result.normalised_residuals.items())
     lines += ["", f"Residual standard deviation on the estimation part: {noise} (SI units).",
+              f"Residual over sensor noise (1 = noise level): {ratios}; "
+              + ("the fit reaches the noise level." if result.converged_to_noise
+                 else "**the fit ends above the noise level** (see the warnings)."),
               f"IPOPT: {result.solver['status']} after {result.solver['iterations']} iterations; "
               f"{result.solver['seconds']:.1f} s in all.", ""]
     if result.warnings:

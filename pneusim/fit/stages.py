@@ -39,11 +39,10 @@ def trust_region(pb: ShootingProblem, v0, lower, upper, max_evaluations: int = 8
     started = time.perf_counter()
     n_r = pb.n_residuals
 
-    # residuals without sensitivities (a trial point the trust region rejects never needs them, and
-    # they cost about seven times the states alone); the Jacobian at an accepted point integrates again
-    # with sensitivities
+    # residuals with sensitivities: the trust region accepts most trial points (17 of 20 on a stuck
+    # closed-loop pre-fit), so integrating once with them beats a state-only pass plus a second one
     def fun(v):
-        e = pb.evaluate(v, derivatives=False)
+        e = pb.evaluate(v, derivatives=True)
         if not e["ok"]:
             return np.full(n_r + pb.n_constraints, 1e3)
         return np.concatenate([e["r"], defect_weight * e["g"]])

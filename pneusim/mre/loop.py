@@ -130,8 +130,8 @@ class StatusLine:
         timing = (f", lateness p50 {np.percentile(lat, 50) * 1e3:.3f} ms p99 {np.percentile(lat, 99) * 1e3:.3f} ms "
                   f"max {lat.max() * 1e3:.3f} ms" if lat.size else "")
         e = f", 1-step error ({err_name}) {err:+.4g}" if err_name else ""
-        self.last_text = (f"{self.label}: {k}/{n} samples ({100.0 * k / max(n, 1):.0f} %), overruns {overruns}, "
-                          f"late > Ts/2 {late_half}{timing}{e}")
+        paced = f", overruns {overruns}, late > Ts/2 {late_half}{timing}" if lat.size else ""   # none when fast
+        self.last_text = f"{self.label}: {k}/{n} samples ({100.0 * k / max(n, 1):.0f} %){paced}{e}"
         self.stream.write("\r" + self.last_text + "   ")
         self.stream.flush()
 

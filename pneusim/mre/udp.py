@@ -254,7 +254,7 @@ class RigServer:
             self.sock.bind((host, int(port)))
         except OSError as exc:
             self.sock.close()
-            raise PneusimError(f"serve-rig: cannot listen on {host}:{port} ({exc.strerror or exc})") from None
+            raise PneusimError(f"--port {port}: cannot listen on {host}:{port} ({exc.strerror or exc})") from None
         self.address = self.sock.getsockname()
         self.stats = ServerStats()
         self.valve_V = self.null_V

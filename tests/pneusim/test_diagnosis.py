@@ -69,7 +69,9 @@ def test_control_comes_back_empty(control, tmp_path):
     _contract_keys(d)
     assert d["recording"] == path.name and d["rig"] == RIG
     # the validation window is the last 30 % and was never fitted
-    t = np.loadtxt(path, delimiter=",", comments="#", skiprows=1, usecols=0)
+    from pneusim.recording import read_recording
+
+    t = read_recording(path).time_s
     assert d["validation"]["t_start_s"] == pytest.approx(t[int(round(0.7 * t.size))], abs=1e-9)
     assert d["validation"]["t_end_s"] == pytest.approx(t[-1])
     # the report folder opens from one file and shows the plots
@@ -91,6 +93,11 @@ def test_effect_recovered(tmp_path, effect, check):
     first = result.findings[0]
     assert first.effect == effect.name, result.summary()
     assert check(first.parameters), first.parameters
+    # fitted with a standard error, and the JSON form carries both
+    d = json.loads(json.dumps(result.to_dict(), allow_nan=False))
+    _contract_keys(d)
+    key = next(k for k in first.standard_errors)
+    assert d["findings"][0]["standard_errors"][key] > 0
     assert first.improvement_points > 0.5
     assert result.final_fit_percent > result.nominal["fit_percent"]
     assert result.final_fit_percent > 97.0
