@@ -5,7 +5,9 @@
   experiment kind, open and closed loop, with and without pressures) is fitted from the data sheet;
   prints the share that reaches the noise level (normalised residual <= 1.1; target >= 95 %), the
   share of parameters whose truth lies within 3 sigma (target >= 90 %) and the time per fit, and
-  writes one JSON line per case to ``PNEUSIM_ROBUST_OUT`` when set.
+  writes one JSON line per case to ``PNEUSIM_ROBUST_OUT`` when set.  The free set is the seven defaults
+  plus the friction smoothing velocity (:func:`pneusim.fit.robustness.fit_free`, see that module for
+  why); ``PNEUSIM_ROBUST_FREE_SMOOTHING=0`` fits the seven defaults only.
 * ``test_refit_warm_against_cold``: diagnosis refits a recording once per candidate effect.  The
   refit with a dead band switched on, warm-started from the nominal fit, against the same fit from
   the data sheet, in the same run (the effect model's kernels compiled beforehand for both).
@@ -22,7 +24,7 @@ import pytest
 
 from pneusim.experiment import standard_experiment
 from pneusim.fit import DEFAULT_FREE, EFFECT_FREE, fit_recording
-from pneusim.fit.robustness import make_case, robustness_cases, score
+from pneusim.fit.robustness import fit_free, make_case, robustness_cases, score
 from pneusim.model import ActuatorModel, make_effect
 from pneusim.rig import load_rig
 from pneusim.simulate import simulate
@@ -32,6 +34,7 @@ from pneusim.simulate import simulate
 def test_robustness_set(benchmark):
     specs = robustness_cases(int(os.environ.get("PNEUSIM_ROBUST_N", "48")))
     out_path = os.environ.get("PNEUSIM_ROBUST_OUT")
+    free = fit_free(os.environ.get("PNEUSIM_ROBUST_FREE_SMOOTHING", "1") != "0")
     rows = []
 
     def run():
@@ -39,7 +42,7 @@ def test_robustness_set(benchmark):
             rig, truth, rec = make_case(spec)
             started = time.perf_counter()
             try:
-                row = score(fit_recording(rec, rig, quiet=True), truth)
+                row = score(fit_recording(rec, rig, free=free, quiet=True), truth)
                 row["z"] = {k: float(v) for k, v in row["z"].items()}
             except Exception as exc:  # a failed fit counts as not converged, and is reported
                 row = {"error": f"{type(exc).__name__}: {exc}", "converged_to_noise": False,
@@ -56,7 +59,7 @@ def test_robustness_set(benchmark):
     converged = np.mean([r["converged_to_noise"] for r in rows])
     coverage = sum(r["inside_3_sigma"] for r in rows) / sum(r["parameters"] for r in rows)
     seconds = np.array([r["wall_s"] for r in rows])
-    print(f"\nrobustness set: {len(rows)} recordings, {100 * converged:.0f} % reach the noise level "
+    print(f"\nrobustness set ({len(free)} free parameters): {len(rows)} recordings, {100 * converged:.0f} % reach the noise level "
           f"(target 95 %), truth within 3 sigma for {100 * coverage:.0f} % of the parameters (target 90 %), "
           f"{seconds.mean():.1f} s per fit (median {np.median(seconds):.1f} s, longest {seconds.max():.1f} s); "
           f"load {os.getloadavg()[0]:.1f}")

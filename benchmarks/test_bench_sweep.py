@@ -21,6 +21,7 @@ Run with ``-s`` to see the summary table::
     pytest benchmarks/test_bench_sweep.py --benchmark-only -s
 """
 
+import json
 import os
 import resource
 import time
@@ -84,14 +85,19 @@ def test_sweep_throughput(benchmark, tmp_path, sweep, request, mode):
         else:
             info = run_sweep(sweep, out, workers=int(mode[-1]), progress=False)
         total = time.perf_counter() - started
+        per_worker = {}
+        for f in (out / "runs").glob("*.json"):
+            res = json.loads(f.read_text())
+            per_worker[res["worker_pid"]] = per_worker.get(res["worker_pid"], 0.0) + (res.get("run_cpu_s") or 0.0)
         parts.append((total, info["wall_time_s"], _cpu(resource.RUSAGE_SELF) - cpu_self,
-                      _cpu(resource.RUSAGE_CHILDREN) - cpu_children, os.getloadavg()[0]))
+                      _cpu(resource.RUSAGE_CHILDREN) - cpu_children, os.getloadavg()[0], sorted(per_worker.values())))
         return info
 
     info = benchmark.pedantic(once, rounds=2, iterations=1)
-    total, runs_s, cpu_self, cpu_workers, load = min(parts)
+    total, runs_s, cpu_self, cpu_workers, load, per_worker = min(parts)
     PARTS[mode] = (f"best {total:.2f} s = runs {runs_s:.2f} s + table and plots {total - runs_s:.2f} s; "
-                   f"cpu this process {cpu_self:.2f} s, local workers {cpu_workers:.2f} s; load {load:.1f}")
+                   f"cpu this process {cpu_self:.2f} s, local workers {cpu_workers:.2f} s (in runs, per worker: "
+                   f"{', '.join(f'{c:.2f}' for c in per_worker)} s); load {load:.1f}")
     benchmark.extra_info.update({"runs_wall_s": runs_s, "after_runs_wall_s": total - runs_s,
                                  "cpu_this_process_s": cpu_self, "cpu_local_workers_s": cpu_workers,
                                  "load_average": load})

@@ -13,7 +13,6 @@ Plots (PNG):
 from __future__ import annotations
 
 import html
-import json
 import math
 from pathlib import Path
 

@@ -10,11 +10,26 @@ freed by the fit, so the fit keeps the data sheet's 1 mm/s) is drawn in 0.5-2 mm
 cycle through both rigs, every experiment kind (``steps``, ``multisine``, ``pulses``) in open and
 closed loop, with and without recorded chamber pressures; the draws come from the case's seed.
 
-    from pneusim.fit.robustness import robustness_cases, make_case, score
+    from pneusim.fit.robustness import robustness_cases, make_case, score, fit_free
     for spec in robustness_cases(48):
         rig, truth, recording = make_case(spec)
-        result = fit_recording(recording, rig, quiet=True)
+        result = fit_recording(recording, rig, free=fit_free(True), quiet=True)
         print(spec.name, score(result, truth))
+
+What defeats the default fit here (issue 9).  The friction smoothing velocity ``v_eps`` of
+``tanh(v / v_eps)`` is not a numerical detail in a hold: a stuck piston creeps at
+``v_eps atanh(F_net / F_s)``, so over a 1-4 s hold of a closed-loop step the recorded position
+depends on it.  With the data sheet's 1 mm/s held fixed, the best the fit can do on closed-loop
+random steps (no pressures, paper 2, started *at the truth*) ends at a normalised residual of 2.3
+for a true 0.5 mm/s, 1.13 for 1.63 mm/s and 1.32 for 2 mm/s, with the static friction and the
+Stribeck velocity pulled off to compensate.  Freed beside the seven defaults (``fit_free(True)``),
+the case that ended at 2.64 from the data sheet reaches 1.00 with all eight truths within 1 sigma
+(smoothing 1.638 mm/s against 1.63 true).  The second cause, seen on the issue's own recording
+(smoothing equal to the fit's): stick-slip breakaways are locally unstable (the Stribeck drop is a
+negative damping with an e-folding time of milliseconds), so a 50-sample segment spanning one has
+huge sensitivities; the cost in (static friction, Stribeck velocity) is rippled by each mistimed
+micro-slip and the trust region stops at "step tolerance" (pre-fit 3.11 there; 10-sample segments
+1.49, still short of noise).
 """
 
 from __future__ import annotations
