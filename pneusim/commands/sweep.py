@@ -10,11 +10,13 @@ EXAMPLES = """examples:
   pneusim sweep scenarios/sweep-paper2.toml --out results/sweep-paper2 --workers 0  # in this process
   pneusim sweep scenarios/sweep-paper2.toml --dask local --workers 4                # a loopback Dask cluster
   pneusim sweep scenarios/sweep-paper2.toml --dask tcp://10.0.0.5:8786              # a running scheduler
+  nice -n 10 pneusim sweep scenarios/ablation-paper2.toml --out results/ablation-paper2   # an effect ablation
 
 Writes into DIR: sweep.csv and sweep.parquet (one row per run and identifier reading: run_id, seed, one
 column per varied key, identifier, reading, status, error, metrics, times), summary-KEY.png (fit against
 each varied key) and runs/RUN_ID.json (each run's result).  Runs already stored in DIR/runs are skipped,
-so a sweep restarted after a crash only runs what is missing; a run that raises is recorded with its
+so a sweep restarted after a crash only runs what is missing; a sweep file with an [ablation]
+table also writes ablation.md, ablation.csv, ablation.json and ablation.png; a run that raises is recorded with its
 error and the sweep goes on.  The schema of sweep files is documented in scenarios/README.md."""
 
 

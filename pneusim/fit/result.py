@@ -162,7 +162,8 @@ class FitResult:
         parts = ", ".join(f"{k} {v:.2f}" for k, v in self.normalised_residuals.items())
         return [f"the fit ends above the sensor noise (residual rms / noise std: {parts}; above "
                 f"{ABOVE_NOISE_WARNING} means the model does not explain the recording down to noise: a missing "
-                "effect, a wrong rig file, or a fit stuck in a local minimum)"]
+                "effect, a wrong rig file, a friction smoothing velocity unlike the rig file's (try freeing "
+                "friction_smoothing_velocity_m_per_s), or a fit stuck in a local minimum)"]
 
     def _identifiability_warnings(self) -> list[str]:
         out = []

@@ -80,9 +80,9 @@ def robustness_cases(n: int = 48, seed: int = 0) -> list[CaseSpec]:
 
 
 def hardest_cases(n: int = 8, seed: int = 0) -> list[CaseSpec]:
-    """The kinds that defeated the fit before the stick-slip fix: closed-loop random steps (a hold at
-    every step, the piston sticking and slipping) and open-loop steps and pulses without pressures,
-    on both rigs.  Seeds distinct from :func:`robustness_cases`'."""
+    """The kinds where stick-slip matters most: closed-loop random steps and pulses (a hold at every
+    step, the piston sticking and slipping), and open-loop steps, mostly without pressures, on both
+    rigs.  Seeds distinct from :func:`robustness_cases`'."""
     kinds = [("paper2-enfield", "steps", "closed", False), ("paper2-enfield", "steps", "closed", True),
              ("paper1-mre", "steps", "closed", False), ("paper1-mre", "steps", "closed", True),
              ("paper2-enfield", "pulses", "closed", False), ("paper1-mre", "pulses", "closed", False),

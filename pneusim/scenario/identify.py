@@ -218,6 +218,9 @@ def run_physical_fit(ident: dict, rec, n_est: int, rig, effects, to_output, val_
         sim = rerun_recording(result.rig_, rec, result.effects_, noise_scale=0.0)
     except PneusimError as exc:
         return [not_available(ident, str(exc), status="failed")]
+    except Exception as exc:  # noqa: BLE001 - a fit that crashes must not take the other identifiers down
+        return [not_available(ident, f"{type(exc).__name__}: {exc} "
+                              f"({traceback.extract_tb(exc.__traceback__)[-1].name})", status="failed")]
     yhat = to_output(sim.recording.position_m[n_est:])
     return [{"identifier": ident["name"], "kind": ident["kind"],
              "reading": "fitted rig, experiment re-run, scored on validation", "status": "ok",
