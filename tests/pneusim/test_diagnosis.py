@@ -81,13 +81,14 @@ def test_control_comes_back_empty(control, tmp_path):
         assert (tmp_path / "report" / name).stat().st_size > 0
 
 
-@pytest.mark.parametrize("effect,check", [
-    (make_effect("valve_deadband", deadband_V=0.45), lambda p: 0.3 < p["deadband_V"] < 0.6),
-    (make_effect("external_load", kind="constant", force_N=-150.0), lambda p: -190 < p["force_N"] < -110),
+@pytest.mark.parametrize("effect,loop,kind,check", [
+    (make_effect("valve_deadband", deadband_V=0.45), "open", "pulses", lambda p: 0.3 < p["deadband_V"] < 0.6),
+    (make_effect("external_load", kind="constant", force_N=-100.0), "closed", "steps",
+     lambda p: -130 < p["force_N"] < -70),
 ])
-def test_effect_recovered(tmp_path, effect, check):
+def test_effect_recovered(tmp_path, effect, loop, kind, check):
     """A simulated effect is named first, its parameter recovered, and the validation fit improves."""
-    path = _simulate(tmp_path, [effect], seed=5)
+    path = _simulate(tmp_path, [effect], loop=loop, kind=kind, seed=5)
     # ranked among the whole vocabulary; only the leading candidate is confirmed by a refit (time)
     result = diagnose(path, max_refits=1)
     assert result.effects, result.summary()
