@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import math
 import time
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -275,7 +274,7 @@ def screen(fit, recording, candidate: Candidate | None, noise: dict, samples: in
                     "seconds": time.perf_counter() - started}
         if candidate.name in SCANNED:
             evaluations = max(evaluations, DELAY_EVALUATIONS)
-        v, _, info = _finite_trust_region(pb, v0, lo, hi, max_evaluations=evaluations, defect_weight=DEFECT_WEIGHT)
+        v, _, info = _stages.trust_region(pb, v0, lo, hi, max_evaluations=evaluations, defect_weight=DEFECT_WEIGHT)
         cost = _total_cost(pb, v)
         theta, _ = pb.split(v)
         p = pb.params_of(theta)
@@ -285,38 +284,9 @@ def screen(fit, recording, candidate: Candidate | None, noise: dict, samples: in
         pb.close()
 
 
-def _finite_trust_region(pb, v0, lower, upper, **options):
-    """:func:`pneusim.fit.stages.trust_region` with unbounded states (spool, temperatures) given huge
-    finite bounds: its clipping of the start, ``lower + 1e-12 |lower|``, turns an infinite bound into
-    NaN and with it the start of those states (reported to the fit's owner; harmless once fixed)."""
-    big = 1e12
-    return _stages.trust_region(pb, v0, np.where(np.isfinite(lower), lower, -big),
-                                np.where(np.isfinite(upper), upper, big), **options)
-
-
-@contextmanager
-def _finite_state_bounds():
-    """Within the block, the fit's trust region gets finite bounds (see :func:`_finite_trust_region`)."""
-    from ..fit import fitter as _fitter
-
-    original = getattr(_fitter, "trust_region", None)
-    if original is not _stages.trust_region:
-        yield
-        return
-    _fitter.trust_region = _finite_trust_region
-    try:
-        yield
-    finally:
-        _fitter.trust_region = original
-
-
-def refit(recording, rig, effects, warm, free_extra=None):
+def refit(recording, rig, effects, warm):
     """The whole fit with ``effects`` switched on, warm-started from the fit ``warm``."""
-    with _finite_state_bounds():
-        try:
-            return fit_recording(recording, rig, effects, warm_start=warm, quiet=True)
-        except TypeError:  # a fit without warm starts: start from the warm fit's rig values
-            return fit_recording(recording, warm.rig_, effects, starts=1)
+    return fit_recording(recording, rig, effects, warm_start=warm, quiet=True)
 
 
 def effect_parameters(fit, effect_name: str) -> tuple[dict, dict]:

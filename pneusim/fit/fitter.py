@@ -248,7 +248,9 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
     for k, name in enumerate(free):
         lo_b, hi_b = bounds[k]
         parameters[name] = ParameterEstimate(
-            name=name, estimate=float(estimate[index[k]]), std=float(uncertainty["std"][k] * scales[k]),
+            # IPOPT may end a hair outside a bound (its bound_relax_factor): report the bound itself, so
+            # a physical range check never refuses a fitted value such as a static friction of -4e-7 N
+            name=name, estimate=float(np.clip(estimate[index[k]], lo_b, hi_b)), std=float(uncertainty["std"][k] * scales[k]),
             start=float(p_start[index[k]]), lower=float(lo_b), upper=float(hi_b))
     result = FitResult.build(
         recording=recording, rig=rig, model=model, free=free, parameters=parameters,

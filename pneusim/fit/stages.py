@@ -54,7 +54,11 @@ def trust_region(pb: ShootingProblem, v0, lower, upper, max_evaluations: int = 8
         jr, jg = pb.jacobians(v)
         return sparse.vstack([jr, defect_weight * jg]).tocsr()
 
-    v0 = np.clip(v0, lower + 1e-12 * np.abs(lower), upper - 1e-12 * np.abs(upper))
+    # strictly inside finite bounds; an infinite bound (spool and temperature states) stays infinite
+    # (inf * 1e-12 * |inf| would be NaN)
+    inner_lower = np.where(np.isfinite(lower), lower + 1e-12 * np.abs(lower), lower)
+    inner_upper = np.where(np.isfinite(upper), upper - 1e-12 * np.abs(upper), upper)
+    v0 = np.clip(v0, inner_lower, inner_upper)
     fit = least_squares(fun, v0, jac=jac, bounds=(lower, upper), method="trf", x_scale=1.0,
                         tr_solver="lsmr", max_nfev=max_evaluations, xtol=tolerance, ftol=tolerance)
     r = fun(fit.x)[:n_r]
