@@ -4,5 +4,6 @@ set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$here"
 bash scripts/setup.sh
-# two workers (the machines have two cores); a test file stays on one worker so its fixtures run once
-exec .venv/bin/python -m pytest -n 2 --dist loadfile tests "$@"
+# two workers (the machines have two cores); tests are dealt out one by one, so the long fit tests
+# of one file do not queue on a single worker
+exec .venv/bin/python -m pytest -n 2 --dist load tests "$@"
