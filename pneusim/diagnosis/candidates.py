@@ -37,6 +37,7 @@ import numpy as np
 
 from ..errors import PneusimError, SolverError
 from ..fit import EFFECT_FREE, fit_recording, noise_std_estimate
+from ..fit.fitter import warm_states
 from ..fit.parameters import SEARCHED, parameter_bounds, parameter_scale
 from ..fit.shooting import FitData, ShootingProblem
 from ..fit import stages as _stages
@@ -200,23 +201,6 @@ def passes_test(cost0: float, cost1: float, n: int, k: int, fit0: float, fit1: f
 
 
 # --------------------------------------------------------------------------------------- screening
-def _warm_states(fit, pb: ShootingProblem, params: np.ndarray, recording) -> np.ndarray:
-    model = pb.model
-    values = dict(zip(model.param_names, params))
-    shared = [(i, fit.model.state_names.index(s)) for i, s in enumerate(model.state_names)
-              if s in fit.model.state_names]
-    x_lo, x_hi = pb.state_bounds()
-    out = np.zeros((pb.n_segments, pb.n))
-    for j, k in enumerate(pb.starts):
-        old = fit.estimation_states[k]
-        x = model.initial_state(None, float(old[0]), float(recording.valve_cmd_V[k]), params=values,
-                                pressures_Pa=(float(old[2]), float(old[3])))
-        for i, i_old in shared:
-            x[i] = old[i_old]
-        out[j] = np.clip(x, x_lo, x_hi)
-    return out
-
-
 def _problem(fit, recording, effects, free_extra, noise, samples):
     """The shooting problem of ``fit``'s nominal free parameters plus ``free_extra`` with ``effects`` on,
     over the first ``samples`` estimation samples, started at the fit's optimum."""
@@ -245,7 +229,7 @@ def _problem(fit, recording, effects, free_extra, noise, samples):
     x_lo, x_hi = pb.state_bounds()
     lo = np.concatenate([lower, np.tile(x_lo / pb.x_scale, pb.n_segments)])
     hi = np.concatenate([upper, np.tile(x_hi / pb.x_scale, pb.n_segments)])
-    v0 = pb.join(theta, _warm_states(fit, pb, p, recording))
+    v0 = pb.join(theta, warm_states(fit, pb, p, recording))
     return pb, v0, lo, hi, free
 
 

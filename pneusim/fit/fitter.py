@@ -188,7 +188,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
     attempts, fits = [], []
     if warm_start is not None:
         # a refit: no pre-fit, no alternative starts; trust region and IPOPT from the warm point
-        x_init = _warm_states(warm_start, pb, p_start, recording)
+        x_init = warm_states(warm_start, pb, p_start, recording)
         # near the optimum already: the trust region only has to bring the new effect in; it stops at a
         # relative cost change of 1e-3 (not 1e-4) and IPOPT finishes the exact problem
         v_ls, rms_ls, info = trust_region(pb, pb.join(theta_start, x_init), lo, hi, defect_weight=1e4,
@@ -301,7 +301,7 @@ def _warm_parameters(warm: FitResult, model: ActuatorModel, p_start: np.ndarray)
     return p
 
 
-def _warm_states(warm: FitResult, pb: ShootingProblem, params: np.ndarray, recording: Recording) -> np.ndarray:
+def warm_states(warm: FitResult, pb: ShootingProblem, params: np.ndarray, recording: Recording) -> np.ndarray:
     """Segment start states from the warm fit's states at every estimation sample; the states its
     model lacks from this model's equilibrium at that sample's position and command."""
     model = pb.model
