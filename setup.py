@@ -1,6 +1,7 @@
-"""Build the two compiled helpers: a CVODE driver on CasADi-generated C code with the sample loop
+"""Build the compiled helpers: a CVODE driver on CasADi-generated C code with the sample loop
 (``_cvode_compiled``, the simulator; it uses scikits.odes' Cython declarations of SUNDIALS) and a
-CVODES driver with forward sensitivities (``_cvodes_sensitivity``, the fit).
+CVODES driver with forward sensitivities (``_cvodes_sensitivity``, the fit), and paper 1's RLS
+(``pneusim.scenario._rls``, the online identifier of the real-time loop).
 
 scikits.odes ships its Cython declarations (.pxd) but not the small
 ``sundials_config.pxi`` they include; it is regenerated here from the installed
@@ -47,9 +48,12 @@ def extensions():
             define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
         )
 
+    # the online RLS of the real-time loop (pneusim.scenario.online.PaperRLS): plain C, no SUNDIALS
+    rls = Extension("pneusim.scenario._rls", ["pneusim/scenario/_rls.pyx"], include_dirs=[numpy.get_include()],
+                    define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")])
     # the fit's CVODES driver with forward sensitivities declares what it uses itself
     return cythonize([solver_extension("_cvode_compiled", "sundials_cvode"),
-                      solver_extension("_cvodes_sensitivity", "sundials_cvodes")], include_path=[str(sundials_config_pxi()), str(odes_root)],
+                      solver_extension("_cvodes_sensitivity", "sundials_cvodes"), rls], include_path=[str(sundials_config_pxi()), str(odes_root)],
                      compiler_directives={"language_level": 3}, quiet=True)
 
 

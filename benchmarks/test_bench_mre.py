@@ -9,10 +9,13 @@ i.e. 60 000 samples) against
 
 each with the real-time pacing (coarse ``time.sleep`` then a busy wait of the last 0.2 ms, absolute
 deadlines) and, beside it in the same session, with plain ``time.sleep`` pacing (absolute deadlines,
-no busy wait).  Reported per run: lateness p50/p99/max, overruns, the share of samples late by more
-than half a sample (target <= 0.1 %), the loop's computation per sample, and for UDP the lost and
-late datagrams and the round trip.  Nothing is asserted about time: the numbers depend on the
-machine and its load (print ``uptime`` beside them).  Run::
+no busy wait); and each of these with the real-time scheduling of :mod:`pneusim.mre.rt` (``fifo``:
+SCHED_FIFO priority 40 for the loop and the rig server, the default of ``--realtime``) and without it
+(``normal``: ``--rt-priority 0``).  Reported per run: lateness p50/p99/max, overruns, the share of
+samples late by more than half a sample (target <= 0.1 %), the loop's computation per sample, and for
+UDP the lost and late datagrams and the round trip.  Nothing is asserted about time: the numbers
+depend on the machine and its load (the 1-minute load average is printed before and after each
+case).  ``PNEUSIM_MRE_BENCH_CASES`` picks cases, e.g. ``sim-realtime-fifo,udp-realtime-fifo``.  Run::
 
     nice -n -5 .venv/bin/python -m pytest benchmarks/test_bench_mre.py --benchmark-only -s
 """
@@ -26,12 +29,16 @@ from pathlib import Path
 import pytest
 
 from pneusim.mre.clock import SleepPacing
+from pneusim.mre.rt import DEFAULT_PRIORITY, RealtimeSettings
 from pneusim.mre.run import run_mre
 from pneusim.mre.scenario import load_mre
 
 MRE = Path(__file__).resolve().parents[1] / "scenarios" / "mre-paper1.toml"
 DURATION_S = float(os.environ.get("PNEUSIM_MRE_BENCH_S", "60"))
-CASES = [("sim", "realtime"), ("sim", "sleep"), ("udp", "realtime"), ("udp", "sleep")]
+CASES = [(plant, pacing, sched) for plant in ("sim", "udp") for sched in ("fifo", "normal")
+         for pacing in ("realtime", "sleep")]
+if os.environ.get("PNEUSIM_MRE_BENCH_CASES"):
+    CASES = [c for c in CASES if "-".join(c) in os.environ["PNEUSIM_MRE_BENCH_CASES"].split(",")]
 RESULTS: dict = {}
 
 
@@ -42,48 +49,68 @@ def _spec():
     return spec
 
 
-@pytest.fixture(scope="module")
-def rig_server():
+def _serve(priority):
     s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     s.bind(("127.0.0.1", 0))
     port = s.getsockname()[1]
     s.close()
     proc = subprocess.Popen([sys.executable, "-m", "pneusim.cli", "serve-rig", "--rig", "paper1-mre", "--port",
-                             str(port), "--seed", "1", "--watchdog", "1.0"], stdout=subprocess.PIPE, text=True)
-    proc.stdout.readline()
-    yield f"udp:127.0.0.1:{port}"
-    proc.terminate()
-    proc.wait(10)
+                             str(port), "--seed", "1", "--watchdog", "1.0", "--rt-priority", str(priority)],
+                            stdout=subprocess.PIPE, text=True)
+    print("\n" + proc.stdout.readline().strip())
+    return proc, f"udp:127.0.0.1:{port}"
+
+
+@pytest.fixture(scope="module")
+def rig_servers():
+    """Two rig servers: at SCHED_FIFO 40 (as serve-rig starts by default) and with normal scheduling."""
+    procs = {}
+
+    def address(sched):
+        if sched not in procs:
+            procs[sched] = _serve(DEFAULT_PRIORITY if sched == "fifo" else 0)
+        return procs[sched][1]
+
+    yield address
+    for proc, _ in procs.values():
+        proc.terminate()
+        proc.wait(10)
 
 
 @pytest.fixture(scope="module", autouse=True)
 def table():
     yield
     if RESULTS:
-        print(f"\nMRE loop, paper 1 (RLS orders 3, 4, 5), {DURATION_S:g} s at 1 ms; load {os.getloadavg()}")
-        print(f"  {'plant':5s} {'pacing':9s} {'late p50':>9s} {'p99':>8s} {'max':>8s} {'>Ts/2 %':>8s} "
-              f"{'overruns':>8s} {'compute p50':>11s} {'p99':>7s}  (ms)")
-        for (plant, pacing), r in RESULTS.items():
-            print(f"  {plant:5s} {pacing:9s} {r['late_p50_ms']:9.3f} {r['late_p99_ms']:8.3f} {r['late_max_ms']:8.2f} "
-                  f"{r['late_half_percent']:8.3f} {r['overruns']:8d} {r['compute_p50_ms']:11.3f} "
-                  f"{r['compute_p99_ms']:7.3f}  {r.get('udp', '')}")
-        sim = RESULTS.get(("sim", "realtime"), {})
+        print(f"\nMRE loop, paper 1 (RLS orders 3, 4, 5), {DURATION_S:g} s at 1 ms on {os.cpu_count()} CPUs")
+        print(f"  {'plant':5s} {'pacing':8s} {'sched':6s} {'late p50':>9s} {'p99':>8s} {'max':>8s} {'>Ts/2 %':>8s} "
+              f"{'overruns':>8s} {'compute p50':>11s} {'p99':>7s} {'load':>9s}  (ms)")
+        for (plant, pacing, sched), r in RESULTS.items():
+            print(f"  {plant:5s} {pacing:8s} {sched:6s} {r['late_p50_ms']:9.3f} {r['late_p99_ms']:8.3f} "
+                  f"{r['late_max_ms']:8.2f} {r['late_half_percent']:8.3f} {r['overruns']:8d} {r['compute_p50_ms']:11.3f} "
+                  f"{r['compute_p99_ms']:7.3f} {r['load_before']:4.2f}/{r['load_after']:4.2f}  {r.get('udp', '')}")
+        sim = RESULTS.get(("sim", "realtime", "fifo"), {})
         if "order4_live_equals_fast" in sim:
             print(f"  order-4 model of the live sim run equals the fast run's: {sim['order4_live_equals_fast']}")
         for plant in ("sim", "udp"):
-            rt, sl = RESULTS.get((plant, "realtime")), RESULTS.get((plant, "sleep"))
-            if rt and sl:
-                print(f"  {plant}: lateness p99 sleep / realtime = {sl['late_p99_ms'] / rt['late_p99_ms']:.2f}")
+            for sched in ("fifo", "normal"):
+                rt, sl = RESULTS.get((plant, "realtime", sched)), RESULTS.get((plant, "sleep", sched))
+                if rt and sl and rt["late_p99_ms"] > 0:
+                    print(f"  {plant} {sched}: lateness p99 sleep / realtime = {sl['late_p99_ms'] / rt['late_p99_ms']:.2f}")
+            fi, no = RESULTS.get((plant, "realtime", "fifo")), RESULTS.get((plant, "realtime", "normal"))
+            if fi and no and fi["late_half_percent"] > 0:
+                print(f"  {plant} realtime: late > Ts/2 normal / fifo = {no['late_half_percent'] / fi['late_half_percent']:.1f}")
 
 
-@pytest.mark.parametrize("plant, pacing", CASES)
-def test_mre_loop_live(benchmark, tmp_path, request, plant, pacing):
-    where = request.getfixturevalue("rig_server") if plant == "udp" else "sim"
+@pytest.mark.parametrize("plant, pacing, sched", CASES)
+def test_mre_loop_live(benchmark, tmp_path, request, plant, pacing, sched):
+    where = request.getfixturevalue("rig_servers")(sched) if plant == "udp" else "sim"
     spec = _spec()
+    rt = RealtimeSettings() if sched == "fifo" else RealtimeSettings.off()
+    load_before = os.getloadavg()[0]
 
     def once():
         return run_mre(spec, tmp_path, plant=where, mode="realtime", duration_s=DURATION_S, report=False,
-                       pacing=SleepPacing(0.001) if pacing == "sleep" else None)
+                       pacing=SleepPacing(0.001) if pacing == "sleep" else None, rt=rt)
 
     run = benchmark.pedantic(once, rounds=1, iterations=1)
     s, tm = run.summary, run.summary["timing"]
@@ -91,17 +118,20 @@ def test_mre_loop_live(benchmark, tmp_path, request, plant, pacing):
     r = {"late_p50_ms": tm["lateness_s"]["p50"] * 1e3, "late_p99_ms": tm["lateness_s"]["p99"] * 1e3,
          "late_max_ms": tm["lateness_s"]["max"] * 1e3, "late_half_percent": tm["late_half_sample_percent"],
          "overruns": tm["overruns"], "compute_p50_ms": tm["compute_s"]["p50"] * 1e3,
-         "compute_p99_ms": tm["compute_s"]["p99"] * 1e3, "load_1min": os.getloadavg()[0]}
+         "compute_p99_ms": tm["compute_s"]["p99"] * 1e3, "load_before": load_before,
+         "load_after": os.getloadavg()[0], "os": s["realtime_os"]["applied"]}
+    for notice in s["realtime_os"]["notices"]:
+        print("\n" + notice)
     if plant == "udp":
         pc = s["plant_counts"]
         r["udp"] = (f"lost {pc['lost']} late {pc['late']} rtt p50 {pc['rtt_s']['p50'] * 1e3:.3f} ms "
                     f"p99 {pc['rtt_s']['p99'] * 1e3:.3f} ms")
-    if (plant, pacing) == ("sim", "realtime"):
+    if (plant, pacing, sched) == ("sim", "realtime", "fifo"):
         # the live model is the rehearsal's: the same run as fast as possible, same seed
         fast = run_mre(spec, tmp_path / "fast", plant="sim", mode="fast", duration_s=DURATION_S, report=False)
         live_tf = s["identified"]["RLS ARMA order 4"]["transfer_function"]
         r["order4_live_equals_fast"] = live_tf == fast.summary["identified"]["RLS ARMA order 4"]["transfer_function"]
         print(f"\norder 4, live:  {live_tf}\norder 4, fast:  "
               f"{fast.summary['identified']['RLS ARMA order 4']['transfer_function']}")
-    RESULTS[(plant, pacing)] = r
+    RESULTS[(plant, pacing, sched)] = r
     benchmark.extra_info.update(r)

@@ -29,3 +29,9 @@ def rig2():
 @pytest.fixture(scope="session")
 def rig1():
     return load_rig("paper1-mre")
+
+
+def pytest_collection_modifyitems(config, items):
+    """Tests marked ``minutes`` run first: with two workers stealing work from each other, a
+    minute-long fit started last would leave one worker idle while the other finishes it."""
+    items.sort(key=lambda item: item.get_closest_marker("minutes") is None)

@@ -33,7 +33,9 @@ def register(sub) -> None:
     p.add_argument("--validation-fraction", type=float, default=0.3, metavar="F",
                    help="final fraction kept for validation, never fitted (default 0.3)")
     p.add_argument("--max-refits", type=int, default=3, metavar="K",
-                   help="leading candidates confirmed by a whole refit (default 3)")
+                   help="leading candidates confirmed by a whole refit, one per look-alike family (default 3)")
+    p.add_argument("--max-lookalikes", type=int, default=2, metavar="K",
+                   help="look-alikes of the winning candidate refitted after them (default 2)")
     p.add_argument("--json", metavar="OUT.json", help="write the JSON result (one recording)")
     p.add_argument("--report", metavar="DIR", help="write the report folder (open DIR/index.html); for "
                                                    "several recordings, the folder of all reports and the summary")
@@ -55,8 +57,9 @@ def run(args) -> int:
             raise PneusimError(f"--effect {name}: unknown effect; expected one of: {', '.join(EFFECTS)}")
     if args.workers is not None and args.workers < 0:
         raise PneusimError(f"--workers must be >= 0, got {args.workers}")
-    if args.max_refits < 0:
-        raise PneusimError(f"--max-refits must be >= 0, got {args.max_refits}")
+    for option, value in (("--max-refits", args.max_refits), ("--max-lookalikes", args.max_lookalikes)):
+        if value < 0:
+            raise PneusimError(f"{option} must be >= 0, got {value}")
     if args.rig:
         from ..rig import load_rig
 
@@ -65,7 +68,7 @@ def run(args) -> int:
 
     files = expand_recordings(args.recordings)
     options = {"effects": args.effect, "validation_fraction": args.validation_fraction,
-               "max_refits": args.max_refits}
+               "max_refits": args.max_refits, "max_lookalikes": args.max_lookalikes}
     many = len(files) > 1 or any(__import__("pathlib").Path(r).is_dir() for r in args.recordings)
     if many:
         if args.json:

@@ -8,6 +8,9 @@ from ..errors import PneusimError
 from .common import DURATION, number_type, output_folder
 
 CPU = number_type("a CPU number >= 0", 0, integer=True)
+#: pneusim.mre.rt.DEFAULT_PRIORITY (not imported here: the command line starts without numpy)
+DEFAULT_PRIORITY = 40
+PRIORITY = number_type("a SCHED_FIFO priority in 0..99 (0: normal scheduling)", 0, 99, integer=True)
 
 
 def register(sub) -> None:
@@ -34,11 +37,18 @@ def register(sub) -> None:
     p.add_argument("--no-report", action="store_true", help="skip the report (recording and summary only)")
     p.add_argument("--cpu", type=CPU, default=None, metavar="N",
                    help="pin the process to CPU N during the run (Linux; os.sched_setaffinity)")
+    p.add_argument("--rt-priority", type=PRIORITY, default=DEFAULT_PRIORITY, metavar="P",
+                   help=f"--realtime only: run the loop at SCHED_FIFO priority P (1..99, default {DEFAULT_PRIORITY})"
+                        "; 0 = normal scheduling. Where the system refuses, one line says so "
+                        "and the loop runs with normal scheduling")
+    p.add_argument("--lock-memory", action="store_true",
+                   help="--realtime only: lock the process's memory (mlockall) while the loop runs")
     p.set_defaults(func=run, mode=None)
 
 
 def run(args) -> int:
     from ..mre.plants import parse_plant
+    from ..mre.rt import RealtimeSettings
     from ..mre.run import run_mre
     from ..mre.scenario import load_mre
 
@@ -53,9 +63,12 @@ def run(args) -> int:
         except (AttributeError, OSError) as exc:
             raise PneusimError(f"--cpu {args.cpu}: cannot pin the process to that CPU "
                                f"({getattr(exc, 'strerror', None) or exc})") from None
+    rt = RealtimeSettings(priority=args.rt_priority, lock_memory=args.lock_memory, timer_slack=True)
     mr = run_mre(spec, out, plant=args.plant, mode=args.mode, duration_s=args.duration,
-                 status=not args.no_status and sys.stderr.isatty(), report=not args.no_report)
+                 status=not args.no_status and sys.stderr.isatty(), report=not args.no_report, rt=rt)
     s = mr.summary
+    for notice in s["realtime_os"]["notices"]:
+        print(notice, file=sys.stderr)
     tm = s["timing"]
     print(f"{s['name']}: {s['samples']}/{s['samples_planned']} samples, plant {s['plant']}, {s['mode']}, "
           f"stopped: {s['stop_reason']}")
@@ -64,6 +77,8 @@ def run(args) -> int:
         print(f"lateness p50 {late['p50'] * 1e3:.3f} ms, p99 {late['p99'] * 1e3:.3f} ms, max {late['max'] * 1e3:.3f} "
               f"ms; overruns {tm['overruns']}; late > half a sample {tm['late_half_sample']} "
               f"({tm['late_half_sample_percent']:.3g} %)")
+    if s["mode"] == "realtime":
+        print(f"real-time settings: {s['realtime_os']['applied']}")
     if tm["compute_s"]:
         print(f"computation per sample: p50 {tm['compute_s']['p50'] * 1e3:.3f} ms, "
               f"p99 {tm['compute_s']['p99'] * 1e3:.3f} ms")

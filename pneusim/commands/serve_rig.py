@@ -9,6 +9,10 @@ from .common import NOISE_SCALE, SEED, add_rig_arguments, number_type, parse_eff
 PORT = number_type("a UDP port in 1..65535", 1, 65535, integer=True)
 WATCHDOG = number_type("a time in s > 0", 0.0, low_included=False)
 SESSIONS = number_type("a whole number >= 1", 1, integer=True)
+CPU = number_type("a CPU number >= 0", 0, integer=True)
+#: pneusim.mre.rt.DEFAULT_PRIORITY (not imported here: the command line starts without numpy)
+DEFAULT_PRIORITY = 40
+PRIORITY = number_type("a SCHED_FIFO priority in 0..99 (0: normal scheduling)", 0, 99, integer=True)
 
 
 def register(sub) -> None:
@@ -27,10 +31,18 @@ def register(sub) -> None:
     p.add_argument("--noise-scale", type=NOISE_SCALE, default=1.0, metavar="F", help="sensor noise scale (default 1)")
     p.add_argument("--sessions", type=SESSIONS, default=None, metavar="N",
                    help="exit after N sessions have ended (default: serve until Ctrl-C)")
+    p.add_argument("--rt-priority", type=PRIORITY, default=DEFAULT_PRIORITY, metavar="P",
+                   help=f"serve at SCHED_FIFO priority P (1..99, default {DEFAULT_PRIORITY}); 0 = normal "
+                        "scheduling. Where the system refuses, one line says so and the server runs "
+                        "with normal scheduling")
+    p.add_argument("--cpu", type=CPU, default=None, metavar="N",
+                   help="pin the server to CPU N (Linux); one line says so where the system refuses")
+    p.add_argument("--lock-memory", action="store_true", help="lock the server's memory (mlockall)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from ..mre.rt import RealtimeScope, RealtimeSettings
     from ..mre.udp import RigServer
     from ..plant import SimulatedPlant
 
@@ -38,10 +50,15 @@ def run(args) -> int:
     plant = SimulatedPlant(rig, parse_effects(args.effect), seed=args.seed, noise_scale=args.noise_scale)
     server = RigServer(plant, args.host, args.port, watchdog_s=args.watchdog, null_V=float(rig.params["valve_null_V"]))
     host, port = server.address
-    print(f"serve-rig: {rig.name} on udp {host}:{port}, sample time {rig.sample_time_s:g} s, watchdog "
-          f"{args.watchdog:g} s; Ctrl-C stops", flush=True)
+    scope = RealtimeScope(RealtimeSettings(priority=args.rt_priority, cpu=args.cpu, lock_memory=args.lock_memory),
+                          label="serve-rig")
     try:
-        server.serve(max_sessions=args.sessions)
+        with scope:
+            print(f"serve-rig: {rig.name} on udp {host}:{port}, sample time {rig.sample_time_s:g} s, watchdog "
+                  f"{args.watchdog:g} s, {scope.describe()}; Ctrl-C stops", flush=True)
+            for notice in scope.notices:
+                print(notice, file=sys.stderr, flush=True)
+            server.serve(max_sessions=args.sessions)
     except KeyboardInterrupt:
         print("serve-rig: stopped", file=sys.stderr)
     finally:

@@ -10,10 +10,11 @@ Lagrange-multiplier-like score of what switching the effect on can explain, in t
 sensor noise.  A transport delay has no gradient; it is scanned over fixed delays instead.
 
 **Confirmation (test).** The leading candidates (screening score above 1 % of the nominal residual
-sum of squares and above 5 % of the best score; with the leader, the effects whose signatures look
-like its own: dead time and spool lag, the three friction/force laws, offset and dead band, the
-slow pneumatic effects) are refitted with the whole fit (effect and nominal parameters together,
-warm-started from the nominal fit).  A candidate is kept when both hold:
+sum of squares and above 5 % of the best score), the best-screened one of each family of effects
+whose signatures look alike (dead time and spool lag, the three friction/force laws, offset and dead
+band, the slow pneumatic effects), are refitted with the whole fit (effect and nominal parameters
+together, warm-started from the nominal fit); then the winner's look-alikes are refitted too.  A
+candidate is kept when both hold:
 
 1. *estimation part*: the Bayesian information criterion drops,
    ``N ln(C0 / C1) > k ln N`` (``C`` the residual sum of squares in noise units, ``N`` residuals,
@@ -23,8 +24,9 @@ warm-started from the nominal fit).  A candidate is kept when both hold:
    the fit that white sensor noise alone takes away, and the validation error ``100 - fit``
    shrinks by at least 10 %.
 
-The kept candidate with the best validation fit is the first finding; the next candidates are then
-tried on top of it, by the same test against the model with the findings so far.
+The kept candidate with the best validation fit is the first finding; the other kept candidates are
+then screened on top of it and, where they still explain at least 1 % of the residual, refitted on
+top of it and tested the same way against the model with the findings so far.
 """
 
 from __future__ import annotations
@@ -242,13 +244,14 @@ def _total_cost(pb, v) -> float:
 
 def screen(fit, recording, candidate: Candidate | None, noise: dict, samples: int | None = None,
            evaluations: int = SCREEN_EVALUATIONS) -> dict:
-    """Screen one candidate (``None``: the nominal model, evaluated only).
+    """Screen one candidate (``None``: ``fit``'s own model, evaluated only) on top of ``fit``: its
+    effects (none for the nominal fit) stay switched on at their fitted values.
 
     Returns ``{"cost": C after the steps, "cost_start": C at the start, "parameters": {...}, "seconds"}``.
     """
     started = time.perf_counter()
     stop = min(fit.n_estimation, samples or SCREEN_SAMPLES)
-    effects = [] if candidate is None else [candidate.effect]
+    effects = list(fit.effects_) + ([] if candidate is None else [candidate.effect])
     extra = [] if candidate is None else candidate.free
     pb, v0, lo, hi, free = _problem(fit, recording, effects, extra, noise, stop)
     try:

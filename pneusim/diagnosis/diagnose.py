@@ -118,7 +118,8 @@ def _derived(name: str, values: dict, fit) -> dict:
 
 
 def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 0.3, max_refits: int = 3,
-             max_findings: int = 2, screen_samples: int | None = None, progress: bool = False) -> DiagnosisResult:
+             max_lookalikes: int = 2, max_findings: int = 2, screen_samples: int | None = None,
+             progress: bool = False) -> DiagnosisResult:
     """Diagnose what physics the nominal model leaves out of ``recording``.
 
     Parameters
@@ -132,7 +133,9 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     validation_fraction : float
         Final fraction of the recording kept for validation (never fitted).
     max_refits : int
-        Leading candidates confirmed by a whole refit.
+        Leading candidates confirmed by a whole refit, one per look-alike family (:data:`FAMILIES`).
+    max_lookalikes : int
+        Look-alikes of the winning candidate (same family) refitted in a second round.
     max_findings : int
         At most this many findings (effects modelled together).
     screen_samples : int, optional
@@ -226,16 +229,9 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     top = best_variant[ranked[0]][0] if ranked else 0.0
     least = max(MIN_EXPLAINED * base["cost"], RELATIVE_SCORE * top, 0.0)
     leading = [k for k in ranked if best_variant[k][0] > least]
-    if leading:
-        # effects whose signatures look alike are confirmed together: a few trust-region steps cannot
-        # tell a spool lag from a dead time, or one friction law from another, but a whole refit can
-        leader = leading[0]
-        for family in FAMILIES:
-            if leader in family:
-                leading = [leader] + [k for k in family if k != leader and k in best_variant] + \
-                          [k for k in leading[1:] if k not in family]
-                break
-    for eff in leading[:max(0, max_refits)]:
+
+    def confirm(eff):
+        """Refit with ``eff`` against the nominal model and apply the keep test."""
         score, c, s = best_variant[eff]
         trial = trials[eff]
         t0 = time.perf_counter()
@@ -246,7 +242,7 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
             if not cand.is_solver_failure(exc):
                 raise
             trial.refitted, trial.status, trial.seconds = True, f"refit failed: {exc}", time.perf_counter() - t0
-            continue
+            return
         cost1, _ = cand.estimation_cost(fit1, noise)
         kept, thr, reason = cand.passes_test(cost0, cost1, n_res, c.n_added, fit0, fit1.fit_percent, floor)
         values, _ = cand.effect_parameters(fit1, eff)
@@ -256,6 +252,29 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
         trial.parameters, trial.seconds = values, time.perf_counter() - t0
         refits[eff] = (fit1, c)
 
+    # round 1: the best-screened member of each of the leading families (distinct hypotheses first: a
+    # few trust-region steps rank look-alikes unreliably, and an open-loop drift inflates the scores of
+    # flexible effects, so the leader alone is not enough)
+    chosen, families_seen = [], set()
+    for k in leading:
+        if len(chosen) >= max(0, max_refits):
+            break
+        family = _family(k)
+        if family not in families_seen:
+            families_seen.add(family)
+            chosen.append(k)
+    for eff in chosen:
+        confirm(eff)
+    # round 2: the look-alikes of the winner (or of the leader when nothing was kept): a few
+    # trust-region steps cannot tell a spool lag from a dead time, or one friction law from another,
+    # but a whole refit can
+    kept_now = [k for k in refits if trials[k].kept]
+    target = max(kept_now, key=lambda k: refits[k][0].fit_percent) if kept_now else (chosen[0] if chosen else None)
+    if target is not None:
+        alikes = [k for k in ranked if k in _family(target) and k != target and k not in refits]
+        for eff in alikes[:max(0, max_lookalikes)]:
+            confirm(eff)
+
     findings, final = [], nominal
     kept = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
     if kept:
@@ -263,13 +282,32 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
         final = refits[first][0]
         findings.append(_finding(first, final, fit0, trials[first]))
         # ---- a second effect on top of the first: the other kept candidates, best first
+        base_top = None
         for eff in kept[1:]:
             if len(findings) >= max_findings:
                 break
             c = refits[eff][1]
+            effect = _effect_with(c, {"parameters": trials[eff].parameters})
+            # a refit on top costs as much as the first; screen first whether the candidate still explains
+            # anything once the first finding is in (look-alikes of the first usually explain nothing more)
+            try:
+                if base_top is None:
+                    base_top = cand.screen(final, recording, None, noise, screen_samples)["cost"]
+                # from the effect's neutral start, as in the first screening: the trust region then only
+                # goes downhill from the first finding's optimum
+                gain = base_top - cand.screen(final, recording, c, noise, screen_samples)["cost"]
+            except Exception as exc:  # noqa: BLE001
+                if not cand.is_solver_failure(exc):
+                    raise
+                gain = math.inf    # cannot screen it: let the refit decide
+            score_top = gain - c.n_added * math.log(max(n_screen, 2))
+            if math.isfinite(gain) and not score_top > MIN_EXPLAINED * base_top:
+                trials[eff].status += (f"; on top of {first}: screening explains {gain:.0f} of {base_top:.0f} "
+                                       f"(score {score_top:.0f} <= {MIN_EXPLAINED:g} of it): not refitted")
+                trials[eff].kept = False
+                continue
             _progress(progress, f"{name}: refit with {first} and {eff}")
             try:
-                effect = _effect_with(c, {"parameters": trials[eff].parameters})
                 fit2 = cand.refit(recording, rig_used, list(final.effects_) + [effect], final)
             except Exception as exc:  # noqa: BLE001
                 if not cand.is_solver_failure(exc):
@@ -315,6 +353,11 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     _progress(progress, f"{name}: findings {', '.join(result.effects) or 'none'}; final fit {final.fit_percent:.2f} % "
                         f"({result.seconds:.0f} s)")
     return result
+
+
+def _family(effect: str) -> tuple:
+    """The look-alike family of ``effect`` (itself alone when it has none)."""
+    return next((family for family in FAMILIES if effect in family), (effect,))
 
 
 def _effect_with(c: "cand.Candidate", screened: dict):

@@ -1,6 +1,7 @@
 """Mixed-reality environment (paper 1): controller, online identifiers and a plant in one real-time loop.
 
 * :mod:`~pneusim.mre.clock`: pacing (as fast as possible, real time with absolute deadlines, plain sleep);
+* :mod:`~pneusim.mre.rt`: real-time settings of the process while it is paced (SCHED_FIFO, locked memory);
 * :mod:`~pneusim.mre.loop`: the sample loop (measure, identify, control, actuate) with per-sample timing;
 * :mod:`~pneusim.mre.plants`: the ``--plant`` choice and the replayed recording (open loop);
 * :mod:`~pneusim.mre.udp`: a rig in another process over UDP (protocol, loop side, server, watchdog);

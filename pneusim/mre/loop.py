@@ -162,7 +162,9 @@ def run_loop(plant, reference: np.ndarray, controller, estimators: Mapping[str, 
     pacing : Pacing
         :class:`~pneusim.mre.clock.FastPacing` (default), real-time or sleep pacing.
     writer : RecordingWriter or None
-        Receives one row per recorded sample (see :func:`row_columns`).
+        Receives one row per recorded sample (see :func:`row_columns`); in a paced run its ``idle``
+        (formatting the rows) is the pacer's :attr:`~pneusim.mre.clock.Pacing.idle`, i.e. done in
+        the wait for the next deadline, not counted in ``compute_s``.
     status : StatusLine or None
     overrun_budget : int or None
         Stop (valve to null) once more samples than this have overrun.
@@ -175,16 +177,18 @@ def run_loop(plant, reference: np.ndarray, controller, estimators: Mapping[str, 
     ts = pacing.sample_time_s
     n = int(reference.shape[0])
     closed = controller is not None
-    pos, cmd = np.full(n, np.nan), np.full(n, np.nan)
-    pa, pb = np.full(n, np.nan), np.full(n, np.nan)
-    flag = np.zeros(n, dtype=int)
-    late, latency, compute = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
-    preds = {(name, h): np.full(n, np.nan) for name, est in estimators.items() for h in est.horizons}
+    # per-sample values go to Python lists (an append costs a third of a numpy item assignment);
+    # the arrays are made once at the end; thetas go straight into their (n, 2n) arrays
+    pos, cmd, pa, pb, flag = [], [], [], [], []
+    late, latency, compute = [], [], []
+    preds = {(name, h): [] for name, est in estimators.items() for h in est.horizons}
     thetas = {name: np.full((n, est.theta.size), np.nan) for name, est in estimators.items()}
     first_h1 = next(((name, 1) for name, est in estimators.items() if 1 in est.horizons), None)
-    est_items = list(estimators.items())
+    plan = [_estimator_plan(name, est, preds, thetas[name]) for name, est in estimators.items()]
     realtime = pacing.realtime
     clock = time.perf_counter
+    half_ts = 0.5 * ts
+    nan = float("nan")
     overruns = late_half = 0
     done = 0
     stop, error, exception = STOP_COMPLETED, None, None
@@ -194,6 +198,9 @@ def run_loop(plant, reference: np.ndarray, controller, estimators: Mapping[str, 
         gc.disable()
     next_status = 0.0
     win_start = 0
+    idle_before = pacing.idle
+    if realtime and writer is not None and hasattr(writer, "idle"):
+        pacing.idle = writer.idle         # rows are formatted in the wait for the next deadline
     started = pacing.start()
     try:
         for j in range(n_warm + n):
@@ -201,32 +208,47 @@ def run_loop(plant, reference: np.ndarray, controller, estimators: Mapping[str, 
             deadline = pacing.wait(j)
             t0 = clock()
             m = plant.measure()
-            ref = reference[k if k > 0 else 0]
+            ref = float(reference[k if k > 0 else 0])
             if k >= 0:
                 y = to_output(m.position_m)
-                for name, est in est_items:
-                    for h, v in est.update(y).items():
-                        preds[(name, h)][k] = v
+                row_preds = []
+                for update, columns, _add, _log in plan:
+                    values = update(y)
+                    for col, v in zip(columns, values):
+                        col.append(v)
+                    row_preds += values
             u = controller.command(m.t_s, ref, m.position_m) if closed else ref
             t_cmd = clock()
             if k < n - 1:
                 plant.step(u)
             if k >= 0:
-                for name, est in est_items:
-                    est.add_input(to_input(u, k))
-                    thetas[name][k] = est.theta
-                pos[k], cmd[k], pa[k], pb[k] = m.position_m, u, m.pressure_a_Pa, m.pressure_b_Pa
-                flag[k] = getattr(plant, "measurement_flag", 0)
-                latency[k] = t_cmd - t0
+                u_est = to_input(u, k)
+                for _update, _columns, add_input, log_theta in plan:
+                    add_input(u_est)
+                    log_theta(k)
+                u = float(u)
+                fl = getattr(plant, "measurement_flag", 0)
+                lat = t_cmd - t0
+                pos.append(m.position_m)
+                cmd.append(u)
+                pa.append(m.pressure_a_Pa)
+                pb.append(m.pressure_b_Pa)
+                flag.append(fl)
+                latency.append(lat)
                 if realtime:
-                    late[k] = t0 - deadline
-                    if late[k] > 0.5 * ts:
+                    lt = t0 - deadline
+                    if lt > half_ts:
                         late_half += 1
+                else:
+                    lt = nan
+                late.append(lt)
                 if writer is not None:
-                    writer.append(_row(k, ts, ref, u, m, closed, late[k], latency[k], flag[k], preds))
+                    row = [k * ts, ref, u] if closed else [k * ts, u]
+                    row += [m.position_m, m.pressure_a_Pa, m.pressure_b_Pa, lt, lat, float(fl)]
+                    writer.append(row + row_preds)
                 done = k + 1
                 t_end = clock()
-                compute[k] = t_end - t0
+                compute.append(t_end - t0)
                 if realtime and t_end > deadline + ts:
                     overruns += 1
                     if overrun_budget is not None and overruns > overrun_budget:
@@ -234,10 +256,10 @@ def run_loop(plant, reference: np.ndarray, controller, estimators: Mapping[str, 
                         error = f"{overruns} samples overran (budget {overrun_budget})"
                         break
                 if status is not None and t_end >= next_status:
-                    err = float("nan")
+                    err = nan
                     if first_h1 is not None:
                         err = to_output(m.position_m) - preds[first_h1][k]
-                    status.show(done, n, overruns, late_half, late[win_start:done], err,
+                    status.show(done, n, overruns, late_half, np.array(late[win_start:done], dtype=float), err,
                                 first_h1[0] if first_h1 else "")
                     win_start = done
                     next_status = t_end + status.interval_s
@@ -249,6 +271,7 @@ def run_loop(plant, reference: np.ndarray, controller, estimators: Mapping[str, 
         stop, exception = STOP_FAULT, exc
         error = str(exc) if _is_user_error(exc) else f"{type(exc).__name__}: {exc}"
     finally:
+        pacing.idle = idle_before
         if gc_was_enabled:
             gc.enable()
         wall = clock() - started
@@ -264,28 +287,42 @@ def run_loop(plant, reference: np.ndarray, controller, estimators: Mapping[str, 
             writer.close()
         if status is not None:
             status.close()
-    cut = slice(0, done)
-    return LoopResult(ts, n, pacing.name, pos[cut].copy(), cmd[cut].copy(), np.asarray(reference[cut], float).copy(),
-                      pa[cut].copy(), pb[cut].copy(), flag[cut].copy(),
-                      {key: v[cut].copy() for key, v in preds.items()},
-                      {key: v[cut].copy() for key, v in thetas.items()},
-                      late[cut].copy(), latency[cut].copy(), compute[cut].copy(), overruns, late_half, stop, error,
+
+    def arr(values, dtype=float):
+        return np.array(values[:done], dtype=dtype)
+
+    return LoopResult(ts, n, pacing.name, arr(pos), arr(cmd), np.asarray(reference[:done], float).copy(),
+                      arr(pa), arr(pb), arr(flag, int),
+                      {key: arr(v) for key, v in preds.items()},
+                      {key: v[:done].copy() for key, v in thetas.items()},
+                      arr(late), arr(latency), arr(compute), overruns, late_half, stop, error,
                       wall, null_sent, exception)
+
+
+def _estimator_plan(name, est, preds, theta_log):
+    """``(update, prediction lists, add_input, log_theta)`` of one estimator, bound once before the loop.
+
+    ``update(y)`` returns the predictions in the order of ``est.horizons``; ``log_theta(k)`` writes
+    ``theta`` into row ``k`` of ``theta_log``, without allocating for estimators with ``theta_logger``
+    (:class:`~pneusim.scenario.online.PaperRLS`), through ``est.theta`` for any other.
+    """
+    unique = tuple(dict.fromkeys(est.horizons))         # a horizon given twice has one column
+
+    def values(y, _update=est.update):
+        d = _update(y)
+        return [d[h] for h in unique]
+    logger = getattr(est, "theta_logger", None)
+    if logger is not None:
+        log_theta = logger(theta_log)
+    else:
+        def log_theta(k):
+            theta_log[k] = est.theta
+    return values, [preds[(name, h)] for h in unique], est.add_input, log_theta
 
 
 def _is_user_error(exc: Exception) -> bool:
     from ..errors import PneusimError
     return isinstance(exc, PneusimError)
-
-
-def _row(k, ts, ref, u, m, closed, late, latency, flag, preds):
-    """One CSV row in the order of :func:`row_columns`."""
-    row = [k * ts]
-    if closed:
-        row.append(ref)
-    row += [u, m.position_m, m.pressure_a_Pa, m.pressure_b_Pa, late, latency, flag]
-    row += [v[k] for v in preds.values()]
-    return row
 
 
 def row_columns(closed: bool, prediction_names) -> list[str]:

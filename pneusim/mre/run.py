@@ -26,6 +26,7 @@ from .clock import make_pacing
 from .loop import LoopResult, StatusLine, row_columns, run_loop, timing_summary
 from .plants import ReplayPlant, parse_plant
 from .recorder import RecordingWriter
+from .rt import RealtimeScope, RealtimeSettings
 from .scenario import build_components
 
 __all__ = ["run_mre", "MreRun", "make_plant", "prediction_column"]
@@ -76,7 +77,7 @@ def make_plant(choice, rig, effects, *, seed: int, noise_scale: float, mode: str
 
 def run_mre(spec: dict, out_dir, *, plant: str | None = None, mode: str | None = None,
             duration_s: float | None = None, status: bool = False, report: bool = True,
-            plant_object=None, stop_after: int | None = None, pacing=None) -> MreRun:
+            plant_object=None, stop_after: int | None = None, pacing=None, rt=None) -> MreRun:
     """Run a checked MRE dict (:func:`pneusim.mre.scenario.load_mre`) and write its folder.
 
     Parameters
@@ -93,6 +94,11 @@ def run_mre(spec: dict, out_dir, *, plant: str | None = None, mode: str | None =
         Inject a fault after this many samples (tests of the stop path).
     pacing : Pacing or None
         Overrides the pacing of ``mode`` (the benchmark's plain-sleep pacing).
+    rt : RealtimeSettings or None
+        Operating-system settings while a paced loop runs (:mod:`pneusim.mre.rt`; default
+        :class:`~pneusim.mre.rt.RealtimeSettings()`: SCHED_FIFO, locked memory, 1 ns timer slack;
+        ``RealtimeSettings.off()`` for none).  Not used in fast mode.  What took effect and what the
+        system refused are in ``summary['realtime_os']``.
     """
     m = spec["mre"]
     mode = mode or m["mode"]
@@ -131,18 +137,23 @@ def run_mre(spec: dict, out_dir, *, plant: str | None = None, mode: str | None =
     if pacing.realtime:
         budget = int(math.floor(float(m["overrun_budget"]) * n))
     pl.reset(comp.x0_m, comp.u_init_V, t0_s=-comp.n_warm * ts)
-    writer = RecordingWriter(rec_path, meta, row_columns(closed, pred_cols))
+    # on disk every 0.1 s of samples: a hard kill loses at most that
+    writer = RecordingWriter(rec_path, meta, row_columns(closed, pred_cols), flush_every=max(1, round(0.1 / ts)))
+    scope = RealtimeScope(rt if rt is not None else RealtimeSettings()) if pacing.realtime else RealtimeScope(None)
     try:
-        res = run_loop(pl, comp.reference, comp.controller, comp.estimators, comp.to_output, comp.to_input,
-                       pacing=pacing, n_warm=comp.n_warm, writer=writer,
-                       status=StatusLine(interval_s=float(m["status_interval_s"])) if status else None,
-                       overrun_budget=budget, null_V=float(rig.params["valve_null_V"]), stop_after=stop_after)
+        with scope:
+            res = run_loop(pl, comp.reference, comp.controller, comp.estimators, comp.to_output, comp.to_input,
+                           pacing=pacing, n_warm=comp.n_warm, writer=writer,
+                           status=StatusLine(interval_s=float(m["status_interval_s"])) if status else None,
+                           overrun_budget=budget, null_V=float(rig.params["valve_null_V"]), stop_after=stop_after)
     finally:
         writer.close()
         close = getattr(pl, "close", None)
         if close is not None:
             close()
     summary = _summary(spec, res, comp, choice, pl, mode, rec_path, pred_keys, pred_cols)
+    summary["realtime_os"] = {"applied": scope.describe() if pacing.realtime else "none (fast mode)",
+                              "notices": list(scope.notices)}
     np.savez(out / "coefficients.npz", time_s=np.arange(res.n_samples) * ts,
              lateness_s=res.lateness_s, latency_s=res.latency_s, compute_s=res.compute_s,
              **{f"theta_{slug(name)}": th for name, th in res.thetas.items()})

@@ -56,16 +56,19 @@ HELLO, READY, CMD, MEAS, BYE = 1, 2, 3, 4, 5
 FLAG_SAMPLE_TIME = 1
 
 
+_STRUCT = struct.Struct(FORMAT)      # compiled once: packing and unpacking run at every sample
+
+
 def pack(kind: int, seq: int, t_sent: float, t_echo: float, v0: float, v1: float = float("nan"),
          v2: float = float("nan"), flags: int = 0) -> bytes:
-    return struct.pack(FORMAT, MAGIC, VERSION, kind, flags, seq, t_sent, t_echo, v0, v1, v2)
+    return _STRUCT.pack(MAGIC, VERSION, kind, flags, seq, t_sent, t_echo, v0, v1, v2)
 
 
 def unpack(data: bytes):
     """``(kind, flags, seq, t_sent, t_echo, v0, v1, v2)`` or ``None`` for a datagram that is not ours."""
     if len(data) != SIZE:
         return None
-    magic, version, kind, flags, seq, t_sent, t_echo, v0, v1, v2 = struct.unpack(FORMAT, data)
+    magic, version, kind, flags, seq, t_sent, t_echo, v0, v1, v2 = _STRUCT.unpack(data)
     if magic != MAGIC or version != VERSION:
         return None
     return kind, flags, seq, t_sent, t_echo, v0, v1, v2
@@ -122,21 +125,28 @@ class UdpPlant:
             self.sock.setblocking(False)
 
     def _recv(self, timeout_s: float):
-        """Next datagram of ours within ``timeout_s``, or None."""
-        end = time.perf_counter() + timeout_s
+        """Next datagram of ours within ``timeout_s``, or None.
+
+        The reply of a paced loop's sample has usually arrived while the loop waited for its
+        deadline: one non-blocking ``recv`` takes it, ``select`` is called only when nothing is there.
+        """
+        end = None
         while True:
-            rest = end - time.perf_counter()
-            if rest < 0:
-                return None
-            ready, _, _ = select.select([self.sock], [], [], rest)
-            if not ready:
-                return None
             try:
                 data = self.sock.recv(256)
             except ConnectionRefusedError:   # ICMP port unreachable from an earlier send: nobody listens
                 raise PneusimError(f"{self.where}: no rig server is listening there "
                                    "(start one with: pneusim serve-rig --rig RIG --port PORT)") from None
             except BlockingIOError:
+                now = time.perf_counter()
+                if end is None:
+                    end = now + timeout_s
+                rest = end - now
+                if rest < 0:
+                    return None
+                ready, _, _ = select.select([self.sock], [], [], rest)
+                if not ready:
+                    return None
                 continue
             msg = unpack(data)
             if msg is not None:

@@ -214,7 +214,7 @@ def run_physical_fit(ident: dict, rec, n_est: int, rig, effects, to_output, val_
     try:
         options = {"starts": ident["fit_starts"]} if ident.get("fit_starts") else {}
         result = fit_recording(rec, rig, effects, validation_fraction=(rec.n_samples - n_est) / rec.n_samples,
-                               **options)
+                               quiet=True, **options)   # a sweep has its own progress bar
         sim = rerun_recording(result.rig_, rec, result.effects_, noise_scale=0.0)
     except PneusimError as exc:
         return [not_available(ident, str(exc), status="failed")]

@@ -20,7 +20,6 @@ prediction ``yhat(k | k-h)`` uses ``theta(k-h)``, the measured outputs up to
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
@@ -38,6 +37,12 @@ __all__ = ["PaperRLS", "SysidRLS", "make_rls", "simulate_online", "OnlineResult"
 class PaperRLS:
     """Recursive ARMA estimator of paper 1 (eq. 8) with h-step predictions.
 
+    The recursion and the predictions run in C (:class:`pneusim.scenario._rls.RlsKernel`,
+    about a microsecond per sample at order 5, so that three orders fit a 1 ms loop);
+    the arithmetic is eq. 8 as written in the module docstring, dot products summed left to
+    right.  (numpy's BLAS sums in another order; on paper 1's loop data RLS amplifies that last
+    bit to ~1e-10 of theta, as much as a one-ulp change of the data does.)
+
     Parameters
     ----------
     order : int
@@ -48,69 +53,65 @@ class PaperRLS:
         ``c`` of ``P(0) = c I``.
     horizons : sequence of int
         Prediction steps to produce at every sample (1 = one-step prediction).
+
+    Attributes
+    ----------
+    theta : ndarray (2n,)
+        ``[a1..an, b1..bn]`` after the last sample (a new array at every access).
+    P : ndarray (2n, 2n)
+        The covariance after the last sample (a new array at every access).
+    k : int
+        Outputs taken so far.
     """
 
     engine = "pneusim PaperRLS"
 
     def __init__(self, order: int, forgetting: float = 0.99, initial_covariance: float = 1000.0,
                  horizons: Sequence[int] = (1,)):
+        try:
+            from ._rls import RlsKernel
+        except ImportError:        # a source tree whose extensions were not built
+            from ..errors import PneusimError
+            raise PneusimError("the compiled RLS (pneusim/scenario/_rls.pyx) is not built; build it with: "
+                               "pip install --no-build-isolation -e .") from None
+
         self.order, self.forgetting, self.c = int(order), float(forgetting), float(initial_covariance)
         self.horizons = tuple(int(h) for h in horizons)
-        n = self.order
-        self.theta = np.zeros(2 * n)
-        self.P = self.c * np.eye(2 * n)
-        self._y = deque([0.0] * (n + max(self.horizons)), maxlen=n + max(self.horizons))  # newest last
-        self._u = deque([0.0] * (n + max(self.horizons)), maxlen=n + max(self.horizons))
-        self._thetas = deque(maxlen=max(self.horizons))    # theta(k-1), theta(k-2), ... newest last
-        self.k = 0
+        self._kernel = RlsKernel(self.order, self.forgetting, self.c, self.horizons)
 
-    def _psi(self) -> np.ndarray:
-        n, y, u = self.order, self._y, self._u
-        ly, lu = len(y), len(u)
-        return np.array([-y[ly - 1 - i] for i in range(n)] + [u[lu - 1 - i] for i in range(n)])
+    @property
+    def theta(self) -> np.ndarray:
+        return self._kernel.theta_copy()
+
+    @property
+    def P(self) -> np.ndarray:
+        return self._kernel.P_copy()
+
+    @property
+    def k(self) -> int:
+        return self._kernel.k
+
+    def theta_logger(self, log: np.ndarray):
+        """``log_theta(k)`` writing ``theta`` into row ``k`` of ``log`` (float64, C-contiguous, (N, 2n))
+        without allocating: how the real-time loop keeps the coefficient traces."""
+        self._kernel.set_theta_log(log)
+        return self._kernel.log_theta
 
     def update(self, y: float) -> dict[int, float]:
         """Take the measurement ``y(k)``; return ``{h: yhat(k | k-h)}`` (NaN until enough history)."""
-        preds = self.predictions()
-        psi = self._psi()
-        Ppsi = self.P @ psi
-        denom = self.forgetting + psi @ Ppsi
-        self.theta = self.theta + Ppsi * ((y - psi @ self.theta) / denom)
-        self.P = (self.P - np.outer(Ppsi, Ppsi) / denom) / self.forgetting
-        self._y.append(float(y))
-        self._thetas.append(self.theta.copy())
-        self.k += 1
-        return preds
+        return dict(zip(self.horizons, self._kernel.update(y)))
 
     def add_input(self, u: float) -> None:
         """Record the input ``u(k)`` applied after the measurement ``y(k)``."""
-        self._u.append(float(u))
+        self._kernel.add_input(u)
 
     def predictions(self) -> dict[int, float]:
         """``yhat(k | k-h)`` for every horizon, before ``y(k)`` is taken (inputs up to ``k-1`` known).
 
-        Plain Python floats: with n <= 5 and h <= 10 the numpy call overhead of per-step dot
-        products would cost ten times the arithmetic (this runs at every 1 ms sample of a live loop).
+        ``yhat(k | k-h)`` iterates the model of ``theta(k-h)`` h times from the measured outputs up
+        to ``k-h``, on the applied inputs up to ``k-1``.
         """
-        n, out = self.order, {}
-        ys, us = list(self._y), list(self._u)                   # index -1 is y(k-1), u(k-1)
-        ny, nu = len(ys), len(us)
-        for h in self.horizons:
-            if h > len(self._thetas) or self.k < n + h:
-                out[h] = float("nan")
-                continue
-            theta = self._thetas[-h].tolist()                   # theta(k-h)
-            a, b = theta[:n], theta[n:]
-            hist = ys[ny - h - n + 1:ny - h + 1]                # y(k-h-n+1) .. y(k-h), oldest first
-            for j in range(1, h + 1):
-                # predict y(k-h+j) from the last n values of hist and u(k-h+j-1) .. u(k-h+j-n)
-                iu = nu - h + j - 1                             # index of u(k-h+j-1)
-                acc = 0.0
-                for i in range(n):
-                    acc += b[i] * us[iu - i] - a[i] * hist[-1 - i]
-                hist.append(acc)
-            out[h] = hist[-1]
-        return out
+        return dict(zip(self.horizons, self._kernel.predictions()))
 
 
 class SysidRLS(PaperRLS):
@@ -118,7 +119,8 @@ class SysidRLS(PaperRLS):
 
     ``sysid`` takes ``(y(k), u(k))`` together, so the update on ``y(k)`` is
     completed in :meth:`add_input`, once the controller has chosen ``u(k)``;
-    the prediction made before ``y(k)`` is taken is unchanged.
+    the prediction made before ``y(k)`` is taken is unchanged.  (``P`` stays ``c I`` here:
+    the covariance lives in the sysid estimator.)
     """
 
     engine = "sysid.RecursiveARX"
@@ -132,17 +134,13 @@ class SysidRLS(PaperRLS):
         self._pending_y = 0.0
 
     def update(self, y: float) -> dict[int, float]:
-        preds = self.predictions()
         self._pending_y = float(y)
-        self._y.append(float(y))
-        self.k += 1
-        return preds
+        return dict(zip(self.horizons, self._kernel.take_output(y)))
 
     def add_input(self, u: float) -> None:
         self._est.update(self._pending_y, float(u))
-        self.theta = np.asarray(self._est.parameters, dtype=float).copy()
-        self._thetas.append(self.theta.copy())
-        self._u.append(float(u))
+        self._kernel.set_theta(self._est.parameters)
+        self._kernel.add_input(u)
 
 
 def make_rls(order, forgetting, initial_covariance, horizons, engine: str = "auto") -> PaperRLS:

@@ -59,6 +59,7 @@ def control(tmp_path_factory):
     return path, diagnose(path)
 
 
+@pytest.mark.minutes
 def test_control_comes_back_empty(control, tmp_path):
     """No effect in the simulation: nothing is missing, and the nominal fit explains the recording."""
     path, result = control
@@ -86,11 +87,12 @@ def test_control_comes_back_empty(control, tmp_path):
     (make_effect("external_load", kind="constant", force_N=-100.0), "closed", "steps",
      lambda p: -130 < p["force_N"] < -70),
 ])
+@pytest.mark.minutes
 def test_effect_recovered(tmp_path, effect, loop, kind, check):
     """A simulated effect is named first, its parameter recovered, and the validation fit improves."""
     path = _simulate(tmp_path, [effect], loop=loop, kind=kind, seed=5)
     # ranked among the whole vocabulary; only the leading candidate is confirmed by a refit (time)
-    result = diagnose(path, max_refits=1)
+    result = diagnose(path, max_refits=1, max_lookalikes=0)
     assert result.effects, result.summary()
     first = result.findings[0]
     assert first.effect == effect.name, result.summary()

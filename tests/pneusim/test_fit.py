@@ -37,6 +37,7 @@ def _recording(rig_name, loop, pressures, seed, noise_scale, effects=(), factors
     return rig, truth, sim.recording
 
 
+@pytest.mark.minutes
 @pytest.mark.parametrize("rig_name,loop,pressures", CASES)
 def test_noise_free_recovery_within_one_percent(rig_name, loop, pressures):
     rig, truth, rec = _recording(rig_name, loop, pressures, seed=1, noise_scale=0.0)
@@ -46,6 +47,7 @@ def test_noise_free_recovery_within_one_percent(rig_name, loop, pressures):
     assert result.fit_percent > 99.0
 
 
+@pytest.mark.minutes
 def test_noisy_truth_inside_three_sigma_for_ninety_percent():
     """Realistic sensor noise (the rig files' 0.02 % of stroke, 300 Pa), two seeds per case."""
     inside, total, worst = 0, 0, []
