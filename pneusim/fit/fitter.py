@@ -7,7 +7,7 @@
 2. **split** — the first ``1 - validation_fraction`` of the recording
    estimates, the rest validates and is never seen by the optimiser;
 3. **pre-fit** — the multiple-shooting problem (:mod:`.shooting`) on a short
-   window, from the rig file's values, integrated at a looser tolerance, by trust-region least
+   window, from the rig file's values, by trust-region least
    squares with the continuity between segments as weighted residuals, raised from 10 to 1000 when
    both chamber pressures are recorded (:func:`.stages.prefit`);
 4. **fit** — the whole estimation part from the pre-fit: trust region, then
@@ -53,9 +53,6 @@ from .uncertainty import covariance
 __all__ = ["fit_recording", "noise_std_estimate"]
 
 _LOG = logging.getLogger("pneusim.fit")
-
-#: CVODES relative tolerance of the pre-fit (or the fit's own, when looser)
-PREFIT_RTOL = 1e-5
 
 #: alternative starts of the pre-fit, as factors on the starting values (deterministic)
 _START_FACTORS = (
@@ -181,9 +178,8 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         return FitData(recording.time_s[:stop], recording.valve_cmd_V[:stop], float(recording.valve_cmd_V[0]),
                        {k: (v[:stop], sigma[k]) for k, v in signals.items()})
 
-    def problem(stop, tolerance=rtol):
-        pb = ShootingProblem(model, p_start, free, scales, window(stop), rig.stroke_m, seg, delay_s, tolerance,
-                             threads)
+    def problem(stop):
+        pb = ShootingProblem(model, p_start, free, scales, window(stop), rig.stroke_m, seg, delay_s, rtol, threads)
         x_lo, x_hi = pb.state_bounds()
         lo = np.concatenate([lower, np.tile(x_lo / pb.x_scale, pb.n_segments)])
         hi = np.concatenate([upper, np.tile(x_hi / pb.x_scale, pb.n_segments)])
@@ -212,9 +208,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         # region first, then IPOPT on the exact constrained problem.  A short window can leave two basins
         # equally good (the valve's critical pressure ratio against its conductance, say) that the whole
         # part tells apart: a fit that ends well above its pre-fit's residual is retried from the next start.
-        # the pre-fit only has to find the basin: integrated at a looser tolerance (1e-5 takes 10 steps a
-        # sample where 1e-6 takes 15, and its error is a fraction of the sensor noise), the fit at ``rtol``
-        pre_pb, pre_lo, pre_hi = problem(min(n_est, prefit_samples), max(rtol, PREFIT_RTOL))
+        pre_pb, pre_lo, pre_hi = problem(min(n_est, prefit_samples))
         for k, factors in enumerate(_START_FACTORS[:max(1, starts)]):
             theta0 = np.clip(theta_start * np.array([factors.get(name, 1.0) for name in free]), lower, upper)
             v0 = pre_pb.join(theta0, initial_starts(pre_pb, theta0, recording, pre_pb.data.n_samples))

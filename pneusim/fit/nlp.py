@@ -111,11 +111,7 @@ class _Oracle(ca.Callback):
 
     def eval(self, arg):
         v = np.array(arg[0]).ravel()
-        # values with sensitivities too: near the optimum IPOPT takes full steps, and it asks for the
-        # derivatives at every point it accepts right after its values (a states-only pass there would
-        # be thrown away: 0.8 s of each 5.6 s iteration on the paper-2 benchmark), and values and
-        # derivatives then come from one integration
-        e = self.pb.evaluate(v, derivatives=True)
+        e = self.pb.evaluate(v, derivatives=self.kind != "values")
         f = 0.5 * float(np.dot(e["r"], e["r"])) / self.M
         if self.penalty is not None:
             f += 0.5 * self.penalty ** 2 * float(np.dot(e["g"], e["g"])) / self.M
