@@ -7,9 +7,8 @@
 2. **split** — the first ``1 - validation_fraction`` of the recording
    estimates, the rest validates and is never seen by the optimiser;
 3. **pre-fit** — the multiple-shooting problem (:mod:`.shooting`) on a short
-   window, from the rig file's values, by trust-region least
-   squares with the continuity between segments as weighted residuals, raised from 10 to 1000 when
-   both chamber pressures are recorded (:func:`.stages.prefit`);
+   window, from the rig file's values, by trust-region least squares with the
+   continuity between segments weighted more and more (:mod:`.stages`);
 4. **fit** — the whole estimation part from the pre-fit: trust region, then
    IPOPT (:mod:`.nlp`) on the exact constrained problem; a fit that ends well
    above its pre-fit's residual is retried from the next start;
@@ -47,7 +46,7 @@ from .parameters import DEFAULT_FREE, EFFECT_FREE, SEARCHED, check_free, paramet
 from .initial import initial_starts
 from .result import FitResult, ParameterEstimate
 from .shooting import FitData, ShootingProblem
-from .stages import polish, prefit, trust_region
+from .stages import polish, trust_region
 from .uncertainty import covariance
 
 __all__ = ["fit_recording", "noise_std_estimate"]
@@ -212,7 +211,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         for k, factors in enumerate(_START_FACTORS[:max(1, starts)]):
             theta0 = np.clip(theta_start * np.array([factors.get(name, 1.0) for name in free]), lower, upper)
             v0 = pre_pb.join(theta0, initial_starts(pre_pb, theta0, recording, pre_pb.data.n_samples))
-            v_pre, rms_pre, info = prefit(pre_pb, v0, pre_lo, pre_hi)
+            v_pre, rms_pre, info = trust_region(pre_pb, v0, pre_lo, pre_hi, defect_weight=1e3)
             theta0, prefit_states = pre_pb.split(v_pre)
             attempts.append({"start": k + 1, "rms_normalised": rms_pre, **info})
             say(f"start {k + 1}, pre-fit ({pre_pb.data.n_samples} samples): trust region {info['status']} after "
@@ -230,12 +229,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
             fits.append((res.objective if np.isfinite(res.objective) else np.inf, k, res))
             say(f"start {k + 1}, fit: IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s), "
                 f"normalised rms residual {rms:.3g}")
-            # the basin is judged on the pre-fit's own window: a fit that explains that window as well
-            # as the pre-fit did has kept its basin, and a larger residual over the whole part is then
-            # physics the window does not show (a missing effect, a harder stretch), not a wrong start
-            rms_window = _window_rms(pb, res.v, pre_pb.data.n_samples)
-            attempts[-1].update(fit_rms_prefit_window=rms_window)
-            if np.isfinite(rms_window) and rms_window <= max(1.25 * rms_pre, rms_pre + 0.2):
+            if np.isfinite(rms) and rms <= max(1.25 * rms_pre, rms_pre + 0.2):
                 break
         pre_pb.close()
     res = min(fits, key=lambda f: (f[0], f[1]))[2]
@@ -327,17 +321,6 @@ def warm_states(warm: FitResult, pb: ShootingProblem, params: np.ndarray, record
 
 
 # ----------------------------------------------------------------- pieces
-def _window_rms(pb: ShootingProblem, v: np.ndarray, n_samples: int) -> float:
-    """Normalised rms residual of the solution ``v`` over the samples before ``n_samples``."""
-    e = pb.evaluate(v, derivatives=False)
-    if not e["ok"]:
-        return float("inf")
-    r = e["r"]
-    parts = [r[r0:r0 + keep.size][keep < n_samples] for blocks in pb.row_blocks for (_, keep, r0) in blocks]
-    window = np.concatenate(parts) if parts else np.zeros(0)
-    return float(np.sqrt(np.mean(window ** 2))) if window.size else float("inf")
-
-
 def _name(recording: Recording) -> str:
     return str(recording.source or "the recording")
 

@@ -20,10 +20,7 @@ from ..errors import FitError
 from .nlp import solve_ipopt
 from .shooting import ShootingProblem
 
-__all__ = ["trust_region", "continuation", "prefit", "polish", "PREFIT_DEFECT_WEIGHTS"]
-
-#: continuity weights of the pre-fit, in turn (see :func:`continuation`)
-PREFIT_DEFECT_WEIGHTS = (10.0, 1000.0)
+__all__ = ["trust_region", "polish"]
 
 
 def trust_region(pb: ShootingProblem, v0, lower, upper, max_evaluations: int = 80, defect_weight: float = 1000.0,
@@ -59,8 +56,9 @@ def trust_region(pb: ShootingProblem, v0, lower, upper, max_evaluations: int = 8
 
     # strictly inside finite bounds; an infinite bound (spool and temperature states) stays infinite
     # (inf * 1e-12 * |inf| would be NaN)
-    inner_lower = np.where(np.isfinite(lower), lower + 1e-12 * np.abs(lower), lower)
-    inner_upper = np.where(np.isfinite(upper), upper - 1e-12 * np.abs(upper), upper)
+    with np.errstate(invalid="ignore"):   # np.where evaluates both branches: inf - inf is NaN there
+        inner_lower = np.where(np.isfinite(lower), lower + 1e-12 * np.abs(lower), lower)
+        inner_upper = np.where(np.isfinite(upper), upper - 1e-12 * np.abs(upper), upper)
     v0 = np.clip(v0, inner_lower, inner_upper)
     fit = least_squares(fun, v0, jac=jac, bounds=(lower, upper), method="trf", x_scale=1.0,
                         tr_solver="lsmr", max_nfev=max_evaluations, xtol=tolerance, ftol=tolerance)
@@ -70,54 +68,6 @@ def trust_region(pb: ShootingProblem, v0, lower, upper, max_evaluations: int = 8
               3: "step tolerance", 4: "cost and step tolerance"}.get(fit.status, str(fit.status))
     return fit.x, rms, {"status": status, "evaluations": int(fit.nfev), "jacobians": int(fit.njev or 0),
                         "seconds": time.perf_counter() - started}
-
-
-def continuation(pb: ShootingProblem, v0, lower, upper, weights=PREFIT_DEFECT_WEIGHTS, **options):
-    """:func:`trust_region` with the continuity weight raised in turn through ``weights``.
-
-    Why: from a start tens of percent off, with continuity weighted 1000 at once, the defects
-    dominate the cost and the first Gauss-Newton steps move the parameters to close them; on a
-    stick-slip recording that leads over a breakaway into a wrong basin, and the trust region then
-    creeps along the narrow valley of the penalty until its step tolerance (paper 1, closed-loop
-    pulses with pressures: normalised residual 1.96 after 35 evaluations, the Stribeck velocity at
-    0.56 of the truth).  With continuity weighted 10 the segments are nearly independent: each fits
-    its own 50 samples from its own start state, every segment is short, and the parameters follow
-    what all segments' samples say together (there 0.037, the noise-free truth, after 22
-    evaluations); raising the weight to 1000 then closes the defects in a few evaluations.
-
-    Returns ``(v, rms, info)`` like :func:`trust_region`; ``info`` sums evaluations and seconds over
-    the rounds and gives the last round's status.
-    """
-    v, total = v0, {"evaluations": 0, "jacobians": 0, "seconds": 0.0}
-    rms, info = float("inf"), {}
-    for weight in weights:
-        # every round with the same stop: a looser one for the first (relative change 1e-2) halved its
-        # evaluations on paper 2 but left paper 1's noise-free closed-loop pre-fit at 3.11 (0.037 with 1e-4)
-        v, rms, info = trust_region(pb, v, lower, upper, defect_weight=weight, **options)
-        for key in total:
-            total[key] += info[key]
-    return v, rms, {**info, **total, "defect_weights": list(weights)}
-
-
-def prefit(pb: ShootingProblem, v0, lower, upper):
-    """The pre-fit from ``v0``: the trust region with continuity weighted 1000, reached directly when
-    a chamber pressure is unmeasured, through weight 10 first (:func:`continuation`) when both are
-    recorded.
-
-    With both chamber pressures recorded every state but the velocity is measured at every sample,
-    so a segment on its own pins the valve and friction parameters, and nearly independent segments
-    (weight 10) lead into the basin that the coupled problem misses (paper 1, closed-loop pulses:
-    normalised residual 0.037 against 1.96 after 35 evaluations; paper 2, closed-loop multisine:
-    1.14 against 3.0).  Without them each segment's pressures are free start states, a decoupled
-    segment trades them for the valve's critical pressure ratio, and the coupled route does better
-    (paper 2, closed-loop multisine: 0.98 against 3.07).
-
-    Returns ``(v, rms, info)`` like :func:`trust_region` (``info["defect_weights"]``: the route).
-    """
-    measured = {name for (_, name, _, _, _) in pb.outputs}
-    both = {"pressure_a_Pa", "pressure_b_Pa"} <= measured
-    weights = PREFIT_DEFECT_WEIGHTS if both else PREFIT_DEFECT_WEIGHTS[-1:]
-    return continuation(pb, v0, lower, upper, weights)
 
 
 def polish(pb: ShootingProblem, v, lower, upper, max_iter: int, rtol: float, penalty: float):
@@ -146,4 +96,3 @@ def polish(pb: ShootingProblem, v, lower, upper, max_iter: int, rtol: float, pen
         res.iterations += first.iterations
         res.seconds += first.seconds
     return res
-
