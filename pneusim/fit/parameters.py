@@ -51,7 +51,7 @@ _TABLE = {
     "valve_offset.offset_V": (0.1, -2.0, 2.0),
     "leakage.conductance_kg_per_s_Pa": (1e-9, 0.0, None),
     "external_load.force_N": (50.0, None, None),
-    "external_load.stiffness_N_per_m": (500.0, 0.0, None),   # the effect's own range: a spring, k >= 0
+    "external_load.stiffness_N_per_m": (500.0, None, None),
     "friction_asymmetry.retract_factor": (1.0, 0.05, 20.0),
     "valve_dynamics.natural_frequency_Hz": (None, 0.5, 1000.0),
     "valve_dynamics.damping": (0.7, 0.05, 5.0),

@@ -140,7 +140,9 @@ def test_cli_realtime_run_says_what_it_got_and_gives_the_scheduler_back(tmp_path
     from pneusim.cli import main
 
     mre = tmp_path / "m.toml"
-    mre.write_text('[mre]\nname = "t"\nduration_s = 0.1\nwarmup_s = 0.0\n[rig]\nname = "paper1-mre"\n'
+    # overruns allowed: this test is about the scheduler settings, not timing (a loaded machine overruns)
+    mre.write_text('[mre]\nname = "t"\nduration_s = 0.1\nwarmup_s = 0.0\noverrun_budget = 1.0\n'
+                   '[rig]\nname = "paper1-mre"\n'
                    '[controller]\nkind = "proportional"\nkp_V_per_m = 40.0\n[reference]\nkind = "steps"\n'
                    'unit = "m"\nlow = 0.02\nhigh = 0.05\nhold_s = [0.02, 0.04]\n', encoding="utf-8")
     before = (os.sched_getscheduler(0), os.sched_getparam(0))
