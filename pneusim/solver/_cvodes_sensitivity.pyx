@@ -68,7 +68,6 @@ cdef extern from "cvodes/cvodes.h":
     enum: CV_BDF
     enum: CV_NORMAL
     enum: CV_STAGGERED
-    enum: CV_SIMULTANEOUS
     ctypedef int (*CVRhsFn)(realtype t, N_Vector y, N_Vector ydot, void* user_data) noexcept nogil
     ctypedef int (*CVSensRhsFn)(int Ns, realtype t, N_Vector y, N_Vector ydot, N_Vector* yS,
                                 N_Vector* ySdot, void* user_data, N_Vector tmp1, N_Vector tmp2) noexcept nogil
@@ -89,11 +88,11 @@ cdef extern from "cvodes/cvodes.h":
     int CVodeSetSensErrCon(void* mem, booleantype errconS)
     int CVodeSensToggleOff(void* mem) nogil
     int CVodeGetSens(void* mem, realtype* tret, N_Vector* yS) nogil
-    int CVodeGetNumSteps(void* mem, long* nsteps) nogil
-    int CVodeGetNumRhsEvals(void* mem, long* nfevals) nogil
-    int CVodeGetSensNumRhsEvals(void* mem, long* nfSevals) nogil
-    int CVodeGetNumLinSolvSetups(void* mem, long* nlinsetups) nogil
-    int CVodeGetNumErrTestFails(void* mem, long* netfails) nogil
+    int CVodeGetNumSteps(void* mem, long* nsteps)
+    int CVodeGetNumRhsEvals(void* mem, long* nfevals)
+    int CVodeGetSensNumRhsEvals(void* mem, long* nfSevals)
+    int CVodeGetNumLinSolvSetups(void* mem, long* nlinsetups)
+    int CVodeGetNumErrTestFails(void* mem, long* netfails)
     int CVodeSetInitStep(void* mem, realtype hin) nogil
     int CVodeGetLastStep(void* mem, realtype* hlast) nogil
     void CVodeFree(void** mem)
@@ -114,14 +113,13 @@ cdef enum:
 # against 0.60); the fit keeps REINIT.
 KEEP_HISTORY = C_KEEP_HISTORY
 REINIT = C_REINIT
-# Also measured and left off (``carry_step``, ``simultaneous``; 5600-sample closed-loop paper-2 window,
-# rtol 1e-6, CPU time of one evaluation with sensitivities, ``totals()`` per sample): default
-# (REINIT, staggered) 1.71 s, 15.3 steps, 41 rhs and 30 sensitivity rhs evaluations per sample;
-# starting each interval from the last step size 1.70 s, 15.8 steps (error test failures 5.7k ->
-# 10k), residuals moved by 0.2 noise std; the simultaneous corrector 1.66 s, 15.4 steps.  Where the
-# time goes (perf): CVODES's per-vector work on 11 sensitivity vectors of 4 states (dense back
-# substitutions 9 %, fused vector operations 15 %), the generated sensitivity kernel 4 %.  Fewer
-# steps is what pays: rtol 1e-5 takes 9.8 steps a sample and 0.99 s, 1e-4 6.3 steps and 0.87 s.
+# Also measured and left out (5600-sample closed-loop paper-2 window, rtol 1e-6, CPU time of one
+# evaluation with sensitivities): default (REINIT, staggered) 1.71 s, 15.3 steps, 41 rhs and 30
+# sensitivity rhs evaluations per sample; starting each interval from the last step size 1.70 s (error
+# test failures 5.7k -> 10k); the simultaneous corrector 1.66 s.  Where the time goes (perf): CVODES's
+# per-vector work on 11 sensitivity vectors of 4 states (dense back substitutions 9 %, fused vector
+# operations 15 %), the generated sensitivity kernel 4 %.  Fewer steps is what pays: rtol 1e-5 takes
+# 9.8 steps a sample and 0.99 s, 1e-4 6.3 steps and 0.87 s.
 
 ctypedef long long casadi_int
 ctypedef int (*casadi_fn)(const double** arg, double** res, casadi_int* iw, double* w, int mem) noexcept nogil
@@ -238,9 +236,6 @@ cdef class SensitivityIntegrator:
     cdef bint sens_on
     cdef object keep
     cdef public int restart      # KEEP_HISTORY or REINIT at a command change
-    cdef public bint carry_step  # after a REINIT at a command change, start from the last step size
-    cdef public bint simultaneous  # CV_SIMULTANEOUS corrector instead of CV_STAGGERED
-    cdef long counts[6]          # steps, rhs, sens rhs, setups, error test failures, reinits (since reset)
 
     def __cinit__(self):
         self.mem = NULL
@@ -292,10 +287,6 @@ cdef class SensitivityIntegrator:
         _check(CVodeSetJacFn(self.mem, _jac), "CVodeSetJacFn")
         self.sens_on = False
         self.restart = C_REINIT
-        self.carry_step = False
-        self.simultaneous = False
-        for i in range(6):
-            self.counts[i] = 0
         self.yS = NULL
         if ns > 0:
             self.yS = N_VCloneVectorArray(ns, self.y)
@@ -338,10 +329,9 @@ cdef class SensitivityIntegrator:
         cdef int i, j, k, flag = 0
         cdef long m = t_stop.shape[0]
         cdef long o
-        cdef realtype t = t0, tret = t0, hlast = 0.0
+        cdef realtype t = t0, tret = t0
         cdef double* yp = N_VGetArrayPointer(self.y)
         cdef bint sens = sensitivities and ns > 0
-        cdef int ism = CV_SIMULTANEOUS if self.simultaneous else CV_STAGGERED
         for i in range(n):
             yp[i] = x0[i]
         if sens:
@@ -353,18 +343,12 @@ cdef class SensitivityIntegrator:
             for k in range(m):
                 if k == 0 or (self.restart == C_REINIT and u[k] != self.pb.u):
                     # a new start (or, with REINIT, a command jump): fresh BDF history from order 1
-                    if k > 0:
-                        self._add_totals(sens)
-                        CVodeGetLastStep(self.mem, &hlast)
                     self.pb.u = u[k]
                     flag = CVodeReInit(self.mem, t, self.y)
                     if flag < 0:
                         break
-                    # carry_step: the step size of the last interval instead of CVODE's estimate
-                    # (0 = estimate); the local error test still cuts it where the new command needs
-                    CVodeSetInitStep(self.mem, hlast if (self.carry_step and k > 0) else 0.0)
                     if sens:
-                        flag = CVodeSensReInit(self.mem, ism, self.yS)
+                        flag = CVodeSensReInit(self.mem, CV_STAGGERED, self.yS)
                     elif ns > 0:
                         flag = CVodeSensToggleOff(self.mem)
                     if flag < 0:
@@ -392,37 +376,8 @@ cdef class SensitivityIntegrator:
                         for j in range(ns):
                             for i in range(n):
                                 s_out[o, i, j] = N_VGetArrayPointer(self.yS[j])[i]
-            if flag >= 0:
-                self._add_totals(sens)
         message = self.pb.message.decode("utf-8", "replace") if self.pb.message[0] != 0 else ""
         return (flag if flag < 0 else 0), float(tret), message
-
-    cdef void _add_totals(self, bint sens) noexcept nogil:
-        # CVodeReInit zeroes CVODES's counters: add them up before each restart and at the end of a run
-        cdef long nst = 0, nfe = 0, nfse = 0, nsetups = 0, netf = 0
-        CVodeGetNumSteps(self.mem, &nst)
-        CVodeGetNumRhsEvals(self.mem, &nfe)
-        if sens:
-            CVodeGetSensNumRhsEvals(self.mem, &nfse)
-        CVodeGetNumLinSolvSetups(self.mem, &nsetups)
-        CVodeGetNumErrTestFails(self.mem, &netf)
-        self.counts[0] += nst
-        self.counts[1] += nfe
-        self.counts[2] += nfse
-        self.counts[3] += nsetups
-        self.counts[4] += netf
-        self.counts[5] += 1
-
-    def totals(self, bint reset=False):
-        """CVODES's counters added up over every run since the last ``totals(reset=True)``: steps,
-        right-hand side and sensitivity right-hand side evaluations, linear solver setups, error
-        test failures, and the number of (re)starts."""
-        out = {"steps": self.counts[0], "rhs": self.counts[1], "sens_rhs": self.counts[2],
-               "setups": self.counts[3], "error_test_failures": self.counts[4], "starts": self.counts[5]}
-        if reset:
-            for i in range(6):
-                self.counts[i] = 0
-        return out
 
     def stats(self):
         """Cumulative CVODES counters: steps, right-hand side and sensitivity right-hand side
