@@ -8,7 +8,9 @@
    estimates, the rest validates and is never seen by the optimiser;
 3. **pre-fit** — the multiple-shooting problem (:mod:`.shooting`) on a short
    window, from the rig file's values, by trust-region least squares with the
-   continuity between segments weighted more and more (:mod:`.stages`);
+   continuity between segments as a weighted residual; where that ends above noise and both
+   pressures are recorded, also with the weight raised in turn, keeping the better route
+   (:func:`.stages.prefit`);
 4. **fit** — the whole estimation part from the pre-fit: trust region, then
    IPOPT (:mod:`.nlp`) on the exact constrained problem; a fit that ends well
    above its pre-fit's residual is retried from the next start;
@@ -46,7 +48,7 @@ from .parameters import DEFAULT_FREE, EFFECT_FREE, SEARCHED, check_free, paramet
 from .initial import initial_starts
 from .result import FitResult, ParameterEstimate
 from .shooting import FitData, ShootingProblem
-from .stages import polish, trust_region
+from .stages import polish, prefit, trust_region
 from .uncertainty import covariance
 
 __all__ = ["fit_recording", "noise_std_estimate"]
@@ -211,11 +213,13 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         for k, factors in enumerate(_START_FACTORS[:max(1, starts)]):
             theta0 = np.clip(theta_start * np.array([factors.get(name, 1.0) for name in free]), lower, upper)
             v0 = pre_pb.join(theta0, initial_starts(pre_pb, theta0, recording, pre_pb.data.n_samples))
-            v_pre, rms_pre, info = trust_region(pre_pb, v0, pre_lo, pre_hi, defect_weight=1e3)
+            v_pre, rms_pre, info = prefit(pre_pb, v0, pre_lo, pre_hi)
             theta0, prefit_states = pre_pb.split(v_pre)
             attempts.append({"start": k + 1, "rms_normalised": rms_pre, **info})
+            routes = ", ".join(f"{r['route']} {r['rms_normalised']:.3g}" for r in info["routes"])
             say(f"start {k + 1}, pre-fit ({pre_pb.data.n_samples} samples): trust region {info['status']} after "
-                f"{info['evaluations']} evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_pre:.3g}")
+                f"{info['evaluations']} evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_pre:.3g}"
+                + (f" (routes: {routes}; kept {info['route']})" if len(info["routes"]) > 1 else ""))
             x_init = initial_starts(pb, theta0, recording, n_est)
             for j, first in enumerate(pb.starts.tolist()):
                 if first in pre_pb.starts and first < pre_pb.starts[-1]:

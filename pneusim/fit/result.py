@@ -236,6 +236,11 @@ class FitResult:
 
 
 def _finite(value):
+    """``value`` with every non-finite float (in lists and dicts too) as None: JSON has no infinity."""
     if isinstance(value, float) and not math.isfinite(value):
         return None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
     return value
