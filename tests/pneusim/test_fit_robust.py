@@ -93,8 +93,9 @@ def test_cli_exits_3_far_above_noise(deadband_case, tmp_path, capsys):
 
 
 @pytest.mark.skipif(not os.environ.get("PNEUSIM_FIT_ROBUST"),
-                    reason="1-3 min per fit on a busy 2-core machine, beyond the suite's budget; "
-                           "set PNEUSIM_FIT_ROBUST=1 to run")
+                    reason="open (issue 9): 3 of these 8 fits stop above noise (paper 2 closed- and open-loop "
+                           "steps without pressures at 6.8 and 3.8 times noise, paper 1 open-loop steps at 1.13), "
+                           "and the 8 take about 200 s; set PNEUSIM_FIT_ROBUST=1 to run")
 @pytest.mark.parametrize("spec", hardest_cases(8), ids=lambda s: s.name)
 def test_hardest_kinds_reach_noise_with_truth_inside_three_sigma(spec):
     rig, truth, rec = make_case(spec)
