@@ -18,14 +18,13 @@ import numpy as np
 
 from ..errors import FitError
 from .nlp import solve_ipopt
+from .result import ABOVE_NOISE_WARNING
 from .shooting import ShootingProblem
 
-__all__ = ["trust_region", "continuation", "prefit", "polish", "PREFIT_DEFECT_WEIGHTS", "NOISE_LEVEL"]
+__all__ = ["trust_region", "continuation", "prefit", "polish", "PREFIT_DEFECT_WEIGHTS"]
 
 #: continuity weights of the pre-fit's second route, in turn (see :func:`continuation`)
 PREFIT_DEFECT_WEIGHTS = (10.0, 1000.0)
-#: a normalised rms residual at most this is "at the noise level" (as :attr:`FitResult.converged_to_noise`)
-NOISE_LEVEL = 1.1
 #: the continuation route replaces the direct one when its residual is smaller by this factor
 CLEARLY_BETTER = 1.25
 
@@ -104,20 +103,20 @@ def continuation(pb: ShootingProblem, v0, lower, upper, weights=PREFIT_DEFECT_WE
 
 def prefit(pb: ShootingProblem, v0, lower, upper):
     """The pre-fit from ``v0``: the trust region with continuity weighted 1000; when that ends above
-    the noise level and both chamber pressures are recorded, also the :func:`continuation` route
-    (weight 10, then 1000) from the same ``v0``, and the one with the smaller residual is kept.
+    the noise level (:data:`~pneusim.fit.result.ABOVE_NOISE_WARNING`) and both chamber pressures are
+    recorded, also the :func:`continuation` route (weight 10, then 1000) from the same ``v0``, which
+    replaces the first only when its residual is smaller by :data:`CLEARLY_BETTER`.
 
     Neither route is better everywhere.  With both pressures recorded every state but the velocity
     is measured at every sample, so a nearly independent segment (weight 10) pins the valve and
     friction parameters on its own, and the continuation finds the basin that the coupled route
-    misses on stick-slip recordings (paper 1, closed-loop pulses: 0.037 against 1.96).  On an
-    open-loop recording whose valve offset makes the piston drift, the decoupled segments absorb
-    the drift in their start velocities instead.  Without the pressures each segment's pressures are free start states, a decoupled
-    segment trades them for the valve's critical pressure ratio, and only the direct route is used
-    (paper 2, closed-loop multisine: 0.98 against 3.07).  The second route costs time only where
-    the first failed to reach the noise, and replaces it only when its residual is smaller by
-    :data:`CLEARLY_BETTER` (on the open-loop valve-offset recording both end at 1.56, and the
-    full fit goes on right from the direct one's point, wrong from the other's).
+    misses on stick-slip recordings (paper 1, closed-loop pulses: 0.037 against 1.96).  Where both
+    end alike, the direct route is kept: on a paper-1 open-loop recording with a valve offset both
+    end at 1.56, and the full fit recovers the offset from the direct route's point but not from the
+    continuation's.  Without the pressures each segment's pressures are free start states, a
+    decoupled segment trades them for the valve's critical pressure ratio, and only the direct route
+    is used (paper 2, closed-loop multisine: 0.98 against 3.07).  The second route costs time only
+    where the first failed to reach the noise.
 
     Returns ``(v, rms, info)`` like :func:`trust_region`; ``info["route"]`` names the one kept and
     ``info["routes"]`` lists each route's residual, evaluations and seconds.
@@ -127,7 +126,7 @@ def prefit(pb: ShootingProblem, v0, lower, upper):
                "seconds": info["seconds"]}]
     best = (v, rms, {**info, "route": "direct"})
     measured = {name for (_, name, _, _, _) in pb.outputs}
-    if not rms <= NOISE_LEVEL and {"pressure_a_Pa", "pressure_b_Pa"} <= measured:
+    if not rms <= ABOVE_NOISE_WARNING and {"pressure_a_Pa", "pressure_b_Pa"} <= measured:
         v_c, rms_c, info_c = continuation(pb, v0, lower, upper)
         routes.append({"route": "continuation", "rms_normalised": rms_c, "evaluations": info_c["evaluations"],
                        "seconds": info_c["seconds"]})
