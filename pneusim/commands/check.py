@@ -5,7 +5,8 @@ from __future__ import annotations
 import sys
 
 from ..errors import PneusimError
-from ..recording import check_plausible, end_stop_text, read_recording, summarize
+from ..plausibility import check_plausible, end_stop_text
+from ..recording import read_recording, summarize
 from .common import rig_for_recording
 
 

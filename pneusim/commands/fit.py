@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from ..recording import check_plausible, read_recording
+from ..plausibility import check_plausible
+from ..recording import read_recording
 from .common import (add_rig_arguments, number_type, output_file, output_folder, parse_effects,
                      rig_for_recording)
 

@@ -7,7 +7,8 @@ import sys
 
 from ..errors import PneusimError
 from ..experiment import INPUT_KINDS, standard_experiment
-from ..recording import MIN_SAMPLES, end_stop_text, read_recording, write_recording
+from ..plausibility import end_stop_text
+from ..recording import MIN_SAMPLES, read_recording, write_recording
 from ..simulate import rerun_recording, simulate
 from .common import (DURATION, NOISE_SCALE, SEED, add_rig_arguments, effects_from_metadata, output_file,
                      parse_effects, rig_for_recording, rig_with_overrides)

@@ -125,8 +125,7 @@ def prefit(pb: ShootingProblem, v0, lower, upper):
     routes = [{"route": "direct", "rms_normalised": rms, "evaluations": info["evaluations"],
                "seconds": info["seconds"]}]
     best = (v, rms, {**info, "route": "direct"})
-    measured = {name for (_, name, _, _, _) in pb.outputs}
-    if not rms <= ABOVE_NOISE_WARNING and {"pressure_a_Pa", "pressure_b_Pa"} <= measured:
+    if not rms <= ABOVE_NOISE_WARNING and {"pressure_a_Pa", "pressure_b_Pa"} <= set(pb.data.signals):
         v_c, rms_c, info_c = continuation(pb, v0, lower, upper)
         routes.append({"route": "continuation", "rms_normalised": rms_c, "evaluations": info_c["evaluations"],
                        "seconds": info_c["seconds"]})

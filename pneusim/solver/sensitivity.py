@@ -117,8 +117,6 @@ class SensitivitySimulator:
         atol = np.ascontiguousarray(self.rtol * tolerance_scale)
         self._integrator = fast.SensitivityIntegrator(kernels, n, self.ns, self.params, self.weights,
                                                       self.rtol, atol)
-        # a fresh BDF start at every command change (see the module's measurements)
-        self._integrator.restart = fast.REINIT
         # S(t0) (n, ns): zero for the parameters, diag(x_scale) for the initial state
         self._s0 = np.zeros((n, self.ns))
         self._s0[:, self.n_free:] = np.diag(self.x_scale)

@@ -15,7 +15,8 @@ import pytest
 from pneusim.cli import main
 from pneusim.errors import InputFileError, PneusimError
 from pneusim.model import make_effect
-from pneusim.recording import Recording, check_plausible, end_stop_time, read_recording, write_recording
+from pneusim.plausibility import check_plausible, end_stop_time
+from pneusim.recording import Recording, read_recording, write_recording
 from pneusim.rig import load_rig, write_rig
 
 
