@@ -11,9 +11,10 @@
    continuity between segments as a weighted residual; where that ends above noise and both
    pressures are recorded, also with the weight raised in turn, keeping the better route
    (:func:`.stages.prefit`);
-4. **fit** — the whole estimation part from the pre-fit: trust region, then
-   IPOPT (:mod:`.nlp`) on the exact constrained problem; a fit that ends well
-   above its pre-fit's residual is retried from the next start;
+4. **fit** — the whole estimation part from the pre-fit: trust region (where
+   that ends above noise and well above the pre-fit, also with the continuity weight raised in turn:
+   :func:`.stages.full_fit`), then IPOPT (:mod:`.nlp`) on the exact constrained problem; a fit that
+   ends well above its pre-fit's residual is retried from the next start;
 5. **uncertainty** — the Gauss-Newton covariance of the estimates with the
    segment states as nuisance parameters, each signal weighted by its residual
    standard deviation (:mod:`.uncertainty`); standard errors, correlations and
@@ -48,7 +49,7 @@ from .parameters import DEFAULT_FREE, EFFECT_FREE, SEARCHED, check_free, paramet
 from .initial import initial_starts
 from .result import FitResult, ParameterEstimate
 from .shooting import FitData, ShootingProblem
-from .stages import polish, prefit, trust_region
+from .stages import full_fit, polish, prefit, trust_region, well_above
 from .uncertainty import covariance
 
 __all__ = ["fit_recording", "noise_std_estimate"]
@@ -224,16 +225,19 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
             for j, first in enumerate(pb.starts.tolist()):
                 if first in pre_pb.starts and first < pre_pb.starts[-1]:
                     x_init[j] = prefit_states[list(pre_pb.starts).index(first)]
-            v_ls, rms_ls, info = trust_region(pb, pb.join(theta0, x_init), lo, hi, defect_weight=1e4)
+            v_ls, rms_ls, info = full_fit(pb, pb.join(theta0, x_init), lo, hi, rms_pre)
+            routes = ", ".join(f"{r['route']} {r['rms_normalised']:.3g}" for r in info["routes"])
             say(f"start {k + 1}, fit ({n_est} samples): trust region {info['status']} after {info['evaluations']} "
-                f"evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_ls:.3g}")
+                f"evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_ls:.3g}"
+                + (f" (routes: {routes}; kept {info['route']})" if len(info["routes"]) > 1 else ""))
             res = polish(pb, v_ls, lo, hi, max_iter, rtol, penalty=1e4)
             rms = float(np.sqrt(res.objective / max(pb.n_residuals, 1)))
-            attempts[-1].update(fit_rms_normalised=rms, ipopt_status=res.status, ipopt_iterations=res.iterations)
+            attempts[-1].update(fit_rms_normalised=rms, fit_routes=info["routes"], ipopt_status=res.status,
+                                ipopt_iterations=res.iterations)
             fits.append((res.objective if np.isfinite(res.objective) else np.inf, k, res))
             say(f"start {k + 1}, fit: IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s), "
                 f"normalised rms residual {rms:.3g}")
-            if np.isfinite(rms) and rms <= max(1.25 * rms_pre, rms_pre + 0.2):
+            if not well_above(rms, rms_pre):
                 break
         pre_pb.close()
     res = min(fits, key=lambda f: (f[0], f[1]))[2]
