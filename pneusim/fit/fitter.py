@@ -217,19 +217,16 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
             v_pre, rms_pre, info = prefit(pre_pb, v0, pre_lo, pre_hi)
             theta0, prefit_states = pre_pb.split(v_pre)
             attempts.append({"start": k + 1, "rms_normalised": rms_pre, **info})
-            routes = ", ".join(f"{r['route']} {r['rms_normalised']:.3g}" for r in info["routes"])
             say(f"start {k + 1}, pre-fit ({pre_pb.data.n_samples} samples): trust region {info['status']} after "
                 f"{info['evaluations']} evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_pre:.3g}"
-                + (f" (routes: {routes}; kept {info['route']})" if len(info["routes"]) > 1 else ""))
+                + _routes_text(info))
             x_init = initial_starts(pb, theta0, recording, n_est)
             for j, first in enumerate(pb.starts.tolist()):
                 if first in pre_pb.starts and first < pre_pb.starts[-1]:
                     x_init[j] = prefit_states[list(pre_pb.starts).index(first)]
             v_ls, rms_ls, info = full_fit(pb, pb.join(theta0, x_init), lo, hi, rms_pre)
-            routes = ", ".join(f"{r['route']} {r['rms_normalised']:.3g}" for r in info["routes"])
             say(f"start {k + 1}, fit ({n_est} samples): trust region {info['status']} after {info['evaluations']} "
-                f"evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_ls:.3g}"
-                + (f" (routes: {routes}; kept {info['route']})" if len(info["routes"]) > 1 else ""))
+                f"evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_ls:.3g}" + _routes_text(info))
             res = polish(pb, v_ls, lo, hi, max_iter, rtol, penalty=1e4)
             rms = float(np.sqrt(res.objective / max(pb.n_residuals, 1)))
             attempts[-1].update(fit_rms_normalised=rms, fit_routes=info["routes"], ipopt_status=res.status,
@@ -288,6 +285,14 @@ class _Progress:
         _LOG.info(line)
         if not self.quiet:
             print(line, file=sys.stderr, flush=True)
+
+
+def _routes_text(info: dict) -> str:
+    """The routes a :func:`.stages.two_routes` stage tried and the one it kept, for the stage line."""
+    if len(info["routes"]) < 2:
+        return ""
+    routes = ", ".join(f"{r['route']} {r['rms_normalised']:.3g}" for r in info["routes"])
+    return f" (routes: {routes}; kept {info['route']})"
 
 
 def _check_warm_start(warm: FitResult, recording: Recording, n_est: int) -> None:
