@@ -81,7 +81,30 @@ def parameter_bounds(name: str, start: float) -> tuple[float, float]:
         lo = -50.0 * magnitude
     if hi is None:
         hi = 50.0 * magnitude
+    lo, hi = _within_effect_range(name, lo, hi, magnitude)
     return float(lo), float(hi)
+
+
+def _within_effect_range(name: str, lo: float, hi: float, magnitude: float) -> tuple[float, float]:
+    """``(lo, hi)`` narrowed to the effect's own physical range (:attr:`Effect.ranges`) for an
+    ``EFFECT.PARAM`` name: a fitted value must make a valid effect (a spring's stiffness of -118 N/m
+    ended a diagnosis refit with "stiffness_N_per_m must be >= 0" before)."""
+    effect, _, key = name.partition(".")
+    if not key:
+        return lo, hi
+    from ..model.effects import EFFECTS
+
+    cls = EFFECTS.get(effect)
+    bounds = getattr(cls, "ranges", {}).get(key) if cls is not None else None
+    if bounds is None:
+        return lo, hi
+    low, high, low_included, high_included = bounds
+    # an open end stays a hair inside: IPOPT may end on a bound
+    if lo <= low:
+        lo = low if low_included else low + 1e-9 * magnitude
+    if hi >= high:
+        hi = high if high_included else high - 1e-9 * magnitude
+    return lo, hi
 
 
 def check_free(names: Sequence[str], param_names: Sequence[str]) -> None:

@@ -231,3 +231,26 @@ def test_effect_text_and_bad_effects():
         parse_effect_text("valve_offset:0.2")
     with pytest.raises(PneusimError, match="once"):
         ActuatorModel([make_effect("valve_offset"), make_effect("valve_offset")])
+
+
+def test_fit_bounds_of_every_effect_parameter_lie_in_its_physical_range():
+    """Whatever the optimiser returns inside the fit's bounds makes a valid effect: both ends of every
+    freed effect parameter's bounds, from its default and from a start of zero, are accepted by the
+    effect (a spring stiffness of -118 N/m once ended a diagnosis refit)."""
+    from pneusim.fit import EFFECT_FREE
+    from pneusim.fit.parameters import parameter_bounds
+    from pneusim.model.effects import in_range
+
+    checked = 0
+    for effect_name, qualified in EFFECT_FREE.items():
+        cls = EFFECTS[effect_name]
+        for q in qualified:
+            key = q.split(".", 1)[1]
+            for start in {cls.parameters[key], 0.0}:
+                lo, hi = parameter_bounds(q, start)
+                assert lo < hi, (q, start, lo, hi)
+                for value in (lo, hi):
+                    assert in_range(value, cls.ranges.get(key)), (q, start, value)
+                    make_effect(effect_name, **{key: value})
+                checked += 1
+    assert checked >= 10
