@@ -13,8 +13,9 @@ sensor noise.  A transport delay has no gradient; it is scanned over fixed delay
 sum of squares and above 5 % of the best score), the best-screened one of each family of effects
 whose signatures look alike (dead time and spool lag, the three friction/force laws, offset and dead
 band, the slow pneumatic effects), are refitted with the whole fit (effect and nominal parameters
-together, warm-started from the nominal fit); then the winner's look-alikes are refitted too.  A
-candidate is kept when both hold:
+together, warm-started from the nominal fit); when none of them is kept, the best-screened members
+of the next families (positive score) are refitted too, up to the same number of refits in all; then
+the winner's look-alikes are refitted.  A candidate is kept when both hold:
 
 1. *estimation part*: the Bayesian information criterion drops,
    ``N ln(C0 / C1) > k ln N`` (``C`` the residual sum of squares in noise units, ``N`` residuals,
