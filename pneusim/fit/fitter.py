@@ -47,7 +47,7 @@ from ..rig import Rig, load_rig
 from ..solver.sensitivity import command_schedule
 from .parameters import DEFAULT_FREE, EFFECT_FREE, SEARCHED, check_free, parameter_bounds, parameter_scale
 from .initial import initial_starts
-from .result import FitResult, ParameterEstimate
+from .result import ABOVE_NOISE_WARNING, FitResult, ParameterEstimate
 from .shooting import FitData, ShootingProblem
 from .stages import full_fit, polish, prefit, trust_region, well_above
 from .uncertainty import covariance
@@ -202,6 +202,17 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         rms = float(np.sqrt(res.objective / max(pb.n_residuals, 1)))
         say(f"warm start: IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s), "
             f"normalised rms residual {rms:.3g}")
+        if res.status == "Maximum_Iterations_Exceeded" and rms > ABOVE_NOISE_WARNING:
+            # stopped by the iteration cap, not converged, while the new effect is still coming in (a -100 N
+            # load refitted from a nominal fit at 55 times noise: 34.7 -> 19.7 in 40 iterations, validation
+            # 90 %): one more round from there, kept when it lowers the residual
+            more = polish(pb, res.v, lo, hi, max_iter, rtol, penalty=1e4)
+            if np.isfinite(more.objective) and more.objective < res.objective:
+                more.iterations += res.iterations
+                more.seconds += res.seconds
+                res = more
+                rms = float(np.sqrt(res.objective / max(pb.n_residuals, 1)))
+            say(f"warm start: IPOPT continued to {res.iterations} iterations, normalised rms residual {rms:.3g}")
         attempts.append({"start": "warm", "fit_rms_normalised": rms, "ipopt_status": res.status,
                          "ipopt_iterations": res.iterations, **info})
         fits.append((res.objective if np.isfinite(res.objective) else np.inf, 0, res))

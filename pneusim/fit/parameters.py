@@ -73,8 +73,10 @@ def parameter_scale(name: str, start: float) -> float:
 
 def parameter_bounds(name: str, start: float) -> tuple[float, float]:
     """Physical ``(lower, upper)`` bounds in SI units."""
-    _, lo, hi = _TABLE.get(name, (None, "pos", "pos"))
-    magnitude = abs(start) if start != 0 else parameter_scale(name, start)
+    typical, lo, hi = _TABLE.get(name, (None, "pos", "pos"))
+    # never narrower than the typical magnitude: an effect starts where diagnosis's screening left it,
+    # often near zero (a load's force at -0.87 N once bounded the refit to +-43 N with -100 N true)
+    magnitude = max(abs(start), typical or 0.0) or parameter_scale(name, start)
     if lo == "pos":  # positive parameters: within a factor 50 of the start
         lo, hi = magnitude / 50.0, magnitude * 50.0
     if lo is None:

@@ -254,3 +254,24 @@ def test_fit_bounds_of_every_effect_parameter_lie_in_its_physical_range():
                     make_effect(effect_name, **{key: value})
                 checked += 1
     assert checked >= 10
+
+
+def test_fit_bounds_do_not_shrink_with_a_start_near_zero():
+    """Diagnosis starts an effect where its screening left it, often near zero; where the fit knows a
+    parameter's typical magnitude, its bounds must not follow the start down (a load screened at
+    -0.87 N once bounded the refit to +-43 N, and a -100 N load was refused)."""
+    from pneusim.fit import EFFECT_FREE
+    from pneusim.fit.parameters import _TABLE, parameter_bounds
+
+    checked = 0
+    for qualified in EFFECT_FREE.values():
+        for q in qualified:
+            typical = _TABLE.get(q, (None,))[0]
+            if typical is None:
+                continue
+            for start in (1e-3 * typical, 0.0):
+                assert parameter_bounds(q, start) == parameter_bounds(q, typical), q
+            checked += 1
+    assert checked >= 6
+    lo, hi = parameter_bounds("external_load.force_N", -0.87)
+    assert lo <= -1000.0 and hi >= 1000.0
