@@ -62,8 +62,11 @@ SPOOL_SCAN_HZ = (30.0, 10.0, 4.0)
 #: thermal time constants the heat-transfer screening starts from, s (a switched-on heat transfer is
 #: never the nominal model: the chamber temperatures become states, so it is screened from two starts)
 HEAT_SCAN_S = (0.05, 0.5)
+#: constant loads the external-load screening starts from, as fractions of the full supply force on the
+#: bore (0: the nominal model; the vocabulary's loads are tenths of it)
+LOAD_SCAN_FRACTIONS = (0.0, 0.15, -0.15)
 #: candidates that start away from the nominal model get more trust-region evaluations
-SCANNED = ("transport_delay", "valve_dynamics", "heat_transfer", "supply_pressure_droop")
+SCANNED = ("transport_delay", "valve_dynamics", "heat_transfer", "supply_pressure_droop", "external_load")
 #: trust-region evaluations of a delay candidate: a delay moves every segment's trajectory, and the
 #: nominal parameters need more steps to follow than for a small effect
 DELAY_EVALUATIONS = 12
@@ -90,7 +93,7 @@ def candidate_list(rig, sample_time_s: float, names=None, delays_s=None) -> list
     Small starting values: the effect is nearly absent, so the screening starts where the nominal fit
     ended.  Effects that have no value equal to the nominal model, or whose parameter moves the
     response non-linearly, are screened from a few starts (:data:`SPOOL_SCAN_HZ`,
-    :data:`HEAT_SCAN_S`, the delays); supply droop starts at a conductance 4 times the valve's and a
+    :data:`HEAT_SCAN_S`, :data:`LOAD_SCAN_FRACTIONS`, the delays); supply droop starts at a conductance 4 times the valve's and a
     supply volume of 0.5 l.
     """
     from ..model.effects import EFFECTS
@@ -138,7 +141,13 @@ def candidate_list(rig, sample_time_s: float, names=None, delays_s=None) -> list
                                                          supply_conductance_m3_per_s_Pa=4.0 * conductance,
                                                          regulator_Pa=supply), free_of(name)))
         elif name == "external_load":
-            out.append(Candidate(name, name, make_effect(name, force_N=0.0, stiffness_N_per_m=0.0), free_of(name)))
+            # also from loads of either sign: far from the optimum a stuck model piston makes the response
+            # to a small load nearly flat (a -100 N load screened from 0 N reached -0.87 N in the steps)
+            full_force = (supply - float(rig.params["atmosphere_Pa"])) * math.pi / 4.0 * float(rig.params["bore_m"]) ** 2
+            for fraction in LOAD_SCAN_FRACTIONS:
+                force = fraction * full_force
+                out.append(Candidate(name, f"external load from {force:.0f} N",
+                                     make_effect(name, force_N=force, stiffness_N_per_m=0.0), free_of(name)))
         elif name == "pressure_dependent_friction":
             values = {}
             cls = EFFECTS[name]

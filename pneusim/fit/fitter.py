@@ -14,7 +14,8 @@
 4. **fit** — the whole estimation part from the pre-fit: trust region (where
    that ends above noise and well above the pre-fit, also with the continuity weight raised in turn:
    :func:`.stages.full_fit`), then IPOPT (:mod:`.nlp`) on the exact constrained problem; a fit that
-   ends well above its pre-fit's residual is retried from the next start;
+   ends well above its pre-fit's residual is retried from the next start, unless the pre-fit itself
+   ends more than :data:`.stages.MODEL_SHORT` times above noise (the model lacks physics there);
 5. **uncertainty** — the Gauss-Newton covariance of the estimates with the
    segment states as nuisance parameters, each signal weighted by its residual
    standard deviation (:mod:`.uncertainty`); standard errors, correlations and
@@ -49,7 +50,7 @@ from .parameters import DEFAULT_FREE, EFFECT_FREE, SEARCHED, check_free, paramet
 from .initial import initial_starts
 from .result import ABOVE_NOISE_WARNING, FitResult, ParameterEstimate
 from .shooting import FitData, ShootingProblem
-from .stages import full_fit, polish, prefit, trust_region, well_above
+from .stages import MODEL_SHORT, full_fit, polish, prefit, trust_region, well_above
 from .uncertainty import covariance
 
 __all__ = ["fit_recording", "noise_std_estimate"]
@@ -246,6 +247,14 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
             say(f"start {k + 1}, fit: IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s), "
                 f"normalised rms residual {rms:.3g}")
             if not well_above(rms, rms_pre):
+                break
+            if rms_pre > MODEL_SHORT:
+                # the restart is for a short window's second basin; a pre-fit this far above noise says
+                # the model lacks physics on this recording, which no other start supplies (on
+                # diagnosis's -100 N load recording three starts ended at 58.3, 55.3, 54.8 in 150 s, and
+                # the refit with the load reaches the noise from the first as from the third)
+                say(f"start {k + 1}: not restarting, the pre-fit itself ends {rms_pre:.3g} times above noise "
+                    f"(more than {MODEL_SHORT:g}): the model lacks physics here")
                 break
         pre_pb.close()
     res = min(fits, key=lambda f: (f[0], f[1]))[2]
