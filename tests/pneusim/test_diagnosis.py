@@ -54,9 +54,13 @@ def _contract_keys(d):
 
 
 @pytest.fixture(scope="module")
-def control(tmp_path_factory):
-    path = _simulate(tmp_path_factory.mktemp("control"))
-    return path, diagnose(path)
+def control_recording(tmp_path_factory):
+    return _simulate(tmp_path_factory.mktemp("control"))
+
+
+@pytest.fixture(scope="module")
+def control(control_recording):
+    return control_recording, diagnose(control_recording)
 
 
 @pytest.mark.minutes
@@ -173,11 +177,11 @@ def test_cli_missing_file_and_folder_options(tmp_path, capsys):
     assert code == 2 and "no .csv or .mat" in err
 
 
-def test_batch_one_failure_does_not_stop_the_others(tmp_path, control):
+def test_batch_one_failure_does_not_stop_the_others(tmp_path, control_recording):
     """Several recordings: a broken file is a row with its error, the good one is diagnosed."""
     from pneusim.diagnosis.batch import diagnose_many
 
-    good, _ = control
+    good = control_recording
     bad = tmp_path / "broken.csv"
     bad.write_text("# format: pneusim-recording/1\nthis is not a recording\n")
     # one candidate effect only, to keep the test short (the full vocabulary is covered above)
