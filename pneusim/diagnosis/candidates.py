@@ -45,6 +45,7 @@ from ..fit.parameters import SEARCHED, parameter_bounds, parameter_scale
 from ..fit.shooting import FitData, ShootingProblem
 from ..fit import stages as _stages
 from ..model import ActuatorModel, make_effect
+from ..model.chamber import areas_m2
 
 __all__ = ["Candidate", "candidate_list", "screen", "refit", "noise_levels", "estimation_cost",
            "validation_noise_points", "passes_test", "SCREEN_SAMPLES"]
@@ -143,7 +144,8 @@ def candidate_list(rig, sample_time_s: float, names=None, delays_s=None) -> list
         elif name == "external_load":
             # also from loads of either sign: far from the optimum a stuck model piston makes the response
             # to a small load nearly flat (a -100 N load screened from 0 N reached -0.87 N in the steps)
-            full_force = (supply - float(rig.params["atmosphere_Pa"])) * math.pi / 4.0 * float(rig.params["bore_m"]) ** 2
+            area_a, _, _ = areas_m2(float(rig.params["bore_m"]), float(rig.params["rod_m"]))
+            full_force = (supply - float(rig.params["atmosphere_Pa"])) * area_a
             for fraction in LOAD_SCAN_FRACTIONS:
                 force = fraction * full_force
                 out.append(Candidate(name, f"external load from {force:.0f} N",

@@ -256,27 +256,24 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     # few trust-region steps rank look-alikes unreliably, and an open-loop drift inflates the scores of
     # flexible effects, so the leader alone is not enough)
     chosen, families_seen = [], set()
-    for k in leading:
-        if len(chosen) >= max(0, max_refits):
-            break
-        family = _family(k)
-        if family not in families_seen:
-            families_seen.add(family)
-            chosen.append(k)
-    for eff in chosen:
-        confirm(eff)
+
+    def confirm_family_leaders(pool):
+        """Refit the first of each family not yet refitted in ``pool`` (screening order), up to max_refits."""
+        for k in pool:
+            if len(chosen) >= max(0, max_refits):
+                return
+            if _family(k) not in families_seen:
+                families_seen.add(_family(k))
+                chosen.append(k)
+                confirm(k)
+
+    confirm_family_leaders(leading)
     # nothing kept: the leader may have dwarfed the rest in the screening only (far from the optimum a few
     # trust-region steps of a flexible effect explain most: practice2_04, a -450 N load at 118 times the
     # noise, screened heat transfer at 14.8e6 and the load at 0.85e6, under the 1 % cut), so the next
     # families by screening order get their refits too, up to max_refits in all
     if not any(trials[k].kept for k in chosen):
-        for k in ranked:
-            if len(chosen) >= max(0, max_refits) or not best_variant[k][0] > 0:
-                break
-            if _family(k) not in families_seen:
-                families_seen.add(_family(k))
-                chosen.append(k)
-                confirm(k)
+        confirm_family_leaders([k for k in ranked if best_variant[k][0] > 0])
     # round 2: the look-alikes of the winner (or of the leader when nothing was kept): a few
     # trust-region steps cannot tell a spool lag from a dead time, or one friction law from another,
     # but a whole refit can

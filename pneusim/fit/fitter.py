@@ -200,7 +200,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         say(f"warm start: trust region {info['status']} after {info['evaluations']} evaluations "
             f"({info['seconds']:.1f} s), normalised rms residual {rms_ls:.3g}")
         res = polish(pb, v_ls, lo, hi, max_iter, rtol, penalty=1e4)
-        rms = float(np.sqrt(res.objective / max(pb.n_residuals, 1)))
+        rms = _normalised_rms(pb, res)
         say(f"warm start: IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s), "
             f"normalised rms residual {rms:.3g}")
         if res.status == "Maximum_Iterations_Exceeded" and rms > ABOVE_NOISE_WARNING and rms < 0.75 * rms_ls:
@@ -213,7 +213,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
                 more.iterations += res.iterations
                 more.seconds += res.seconds
                 res = more
-                rms = float(np.sqrt(res.objective / max(pb.n_residuals, 1)))
+                rms = _normalised_rms(pb, res)
             say(f"warm start: IPOPT continued to {res.iterations} iterations, normalised rms residual {rms:.3g}")
         attempts.append({"start": "warm", "fit_rms_normalised": rms, "ipopt_status": res.status,
                          "ipopt_iterations": res.iterations, **info})
@@ -241,7 +241,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
             say(f"start {k + 1}, fit ({n_est} samples): trust region {info['status']} after {info['evaluations']} "
                 f"evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_ls:.3g}" + _routes_text(info))
             res = polish(pb, v_ls, lo, hi, max_iter, rtol, penalty=1e4)
-            rms = float(np.sqrt(res.objective / max(pb.n_residuals, 1)))
+            rms = _normalised_rms(pb, res)
             attempts[-1].update(fit_rms_normalised=rms, fit_routes=info["routes"], ipopt_status=res.status,
                                 ipopt_iterations=res.iterations)
             fits.append((res.objective if np.isfinite(res.objective) else np.inf, k, res))
@@ -306,6 +306,11 @@ class _Progress:
         _LOG.info(line)
         if not self.quiet:
             print(line, file=sys.stderr, flush=True)
+
+
+def _normalised_rms(pb: ShootingProblem, res) -> float:
+    """The normalised rms residual of an IPOPT result (noise level 1)."""
+    return float(np.sqrt(res.objective / max(pb.n_residuals, 1)))
 
 
 def _routes_text(info: dict) -> str:
