@@ -15,7 +15,7 @@ whose signatures look alike (dead time and spool lag, the three friction/force l
 band, the slow pneumatic effects), are refitted with the whole fit (effect and nominal parameters
 together, warm-started from the nominal fit); when none of them is kept, the best-screened members
 of the next families (positive score) are refitted too, up to the same number of refits in all; then
-the winner's look-alikes are refitted.  A candidate is kept when both hold:
+the winner's look-alikes with a positive score are refitted.  A candidate is kept when both hold:
 
 1. *estimation part*: the Bayesian information criterion drops,
    ``N ln(C0 / C1) > k ln N`` (``C`` the residual sum of squares in noise units, ``N`` residuals,

@@ -109,6 +109,12 @@ def test_effect_recovered(tmp_path, effect, loop, kind, check):
     assert first.improvement_points > 0.5
     assert result.final_fit_percent > result.nominal["fit_percent"]
     assert result.final_fit_percent > 97.0
+    # with the effect modelled, the rig's own parameters come back to the true rig's (the nominal fit
+    # bends them to make up for the missing physics: the load's took a static friction of 103 N for 34)
+    rig = load_rig(RIG)
+    for name in ("moving_mass_kg", "valve_sonic_conductance_m3_per_s_Pa", "friction_coulomb_N"):
+        truth = rig[name] * FACTORS[name]
+        assert result.final_fit.estimates[name] == pytest.approx(truth, rel=0.1), name
 
 
 def test_mismatch_located_in_the_effects_condition(tmp_path):
