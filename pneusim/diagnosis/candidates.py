@@ -66,8 +66,16 @@ HEAT_SCAN_S = (0.05, 0.5)
 #: constant loads the external-load screening starts from, as fractions of the full supply force on the
 #: bore (0: the nominal model; the vocabulary's loads are tenths of it)
 LOAD_SCAN_FRACTIONS = (0.0, 0.15, -0.15)
+#: retract factors the friction-asymmetry screening starts from (1: the nominal model).  Away from 1
+#: the static and Coulomb levels start at 2/(1 + factor) of the nominal fit's, so that the mean of the
+#: two directions stays the level the nominal fit found: from 1.0 a few trust-region steps do not move
+#: the factor on a stick-slip recording (practice2_16, truth 2.88: a gain of 663 of 4.9e5 after 12
+#: steps), from 2.0 with friction kept at the nominal level the start is 376 times the nominal cost
+#: and the steps do not recover it, from 2.0 with the mean kept it gains 8.6e3
+FRICTION_ASYMMETRY_SCAN = (1.0, 2.0, 0.5)
 #: candidates that start away from the nominal model get more trust-region evaluations
-SCANNED = ("transport_delay", "valve_dynamics", "heat_transfer", "supply_pressure_droop", "external_load")
+SCANNED = ("transport_delay", "valve_dynamics", "heat_transfer", "supply_pressure_droop", "external_load",
+           "friction_asymmetry")
 #: trust-region evaluations of a delay candidate: a delay moves every segment's trajectory, and the
 #: nominal parameters need more steps to follow than for a small effect
 DELAY_EVALUATIONS = 12
@@ -81,6 +89,9 @@ class Candidate:
     label: str
     effect: object
     free: list = field(default_factory=list)
+    #: nominal parameters multiplied by these factors at the start of the screening (and the refit
+    #: starts from their screened values)
+    start_scale: dict = field(default_factory=dict)
 
     @property
     def n_added(self) -> int:
@@ -94,8 +105,8 @@ def candidate_list(rig, sample_time_s: float, names=None, delays_s=None) -> list
     Small starting values: the effect is nearly absent, so the screening starts where the nominal fit
     ended.  Effects that have no value equal to the nominal model, or whose parameter moves the
     response non-linearly, are screened from a few starts (:data:`SPOOL_SCAN_HZ`,
-    :data:`HEAT_SCAN_S`, :data:`LOAD_SCAN_FRACTIONS`, the delays); supply droop starts at a conductance 4 times the valve's and a
-    supply volume of 0.5 l.
+    :data:`HEAT_SCAN_S`, :data:`LOAD_SCAN_FRACTIONS`, :data:`FRICTION_ASYMMETRY_SCAN`, the delays);
+    supply droop starts at a conductance 4 times the valve's and a supply volume of 0.5 l.
     """
     from ..model.effects import EFFECTS
 
@@ -136,7 +147,11 @@ def candidate_list(rig, sample_time_s: float, names=None, delays_s=None) -> list
                                                  wall_temperature_K=float(rig.params["supply_temperature_K"])),
                                      free_of(name)))
         elif name == "friction_asymmetry":
-            out.append(Candidate(name, name, make_effect(name, retract_factor=1.0), free_of(name)))
+            for factor in FRICTION_ASYMMETRY_SCAN:
+                mean_kept = {} if factor == 1.0 else {p: 2.0 / (1.0 + factor)
+                                                       for p in ("friction_static_N", "friction_coulomb_N")}
+                out.append(Candidate(name, f"friction asymmetry from {factor:g}",
+                                     make_effect(name, retract_factor=factor), free_of(name), mean_kept))
         elif name == "supply_pressure_droop":
             out.append(Candidate(name, name, make_effect(name, supply_volume_m3=5e-4,
                                                          supply_conductance_m3_per_s_Pa=4.0 * conductance,
@@ -215,9 +230,10 @@ def passes_test(cost0: float, cost1: float, n: int, k: int, fit0: float, fit1: f
 
 
 # --------------------------------------------------------------------------------------- screening
-def _problem(fit, recording, effects, free_extra, noise, samples):
+def _problem(fit, recording, effects, free_extra, noise, samples, start_scale=None):
     """The shooting problem of ``fit``'s nominal free parameters plus ``free_extra`` with ``effects`` on,
-    over the first ``samples`` estimation samples, started at the fit's optimum."""
+    over the first ``samples`` estimation samples, started at the fit's optimum (with the parameters
+    in ``start_scale`` multiplied by their factors)."""
     rig = fit.rig
     model = ActuatorModel(effects)
     p_data_sheet = model.param_vector(rig)
@@ -226,6 +242,7 @@ def _problem(fit, recording, effects, free_extra, noise, samples):
     for i, name in enumerate(model.param_names):
         if name in fitted:
             p[i] = fitted[name]
+        p[i] *= (start_scale or {}).get(name, 1.0)
     free = [n for n in fit.free if n in model.param_names] + [n for n in free_extra if n not in fit.free]
     index = [model.param_names.index(n) for n in free]
     scales = np.array([parameter_scale(n, p_data_sheet[i]) for n, i in zip(free, index)])
@@ -259,13 +276,16 @@ def screen(fit, recording, candidate: Candidate | None, noise: dict, samples: in
     """Screen one candidate (``None``: ``fit``'s own model, evaluated only) on top of ``fit``: its
     effects (none for the nominal fit) stay switched on at their fitted values.
 
-    Returns ``{"cost": C after the steps, "cost_start": C at the start, "parameters": {...}, "seconds"}``.
+    Returns ``{"cost": C after the steps, "cost_start": C at the start, "parameters": {...}, "seconds"}``
+    and, for a candidate with a ``start_scale``, ``"start_values"``: the screened values of those
+    nominal parameters (the refit starts there).
     """
     started = time.perf_counter()
     stop = min(fit.n_estimation, samples or SCREEN_SAMPLES)
     effects = list(fit.effects_) + ([] if candidate is None else [candidate.effect])
     extra = [] if candidate is None else candidate.free
-    pb, v0, lo, hi, free = _problem(fit, recording, effects, extra, noise, stop)
+    pb, v0, lo, hi, free = _problem(fit, recording, effects, extra, noise, stop,
+                                    None if candidate is None else candidate.start_scale)
     try:
         cost_start = _total_cost(pb, v0)
         if candidate is None or evaluations <= 0:
@@ -278,14 +298,18 @@ def screen(fit, recording, candidate: Candidate | None, noise: dict, samples: in
         theta, _ = pb.split(v)
         p = pb.params_of(theta)
         params = {n: float(p[pb.model.param_names.index(n)]) for n in candidate.free}
-        return {"cost": cost, "cost_start": cost_start, "parameters": params, "seconds": time.perf_counter() - started}
+        out = {"cost": cost, "cost_start": cost_start, "parameters": params, "seconds": time.perf_counter() - started}
+        if candidate.start_scale:
+            out["start_values"] = {n: float(p[pb.model.param_names.index(n)]) for n in candidate.start_scale}
+        return out
     finally:
         pb.close()
 
 
-def refit(recording, rig, effects, warm):
-    """The whole fit with ``effects`` switched on, warm-started from the fit ``warm``."""
-    return fit_recording(recording, rig, effects, warm_start=warm, quiet=True)
+def refit(recording, rig, effects, warm, start_values=None):
+    """The whole fit with ``effects`` switched on, warm-started from the fit ``warm`` (and from
+    ``start_values`` for the parameters named there)."""
+    return fit_recording(recording, rig, effects, warm_start=warm, start_values=start_values, quiet=True)
 
 
 def effect_parameters(fit, effect_name: str) -> tuple[dict, dict]:

@@ -240,7 +240,7 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
         t0 = time.perf_counter()
         _progress(progress, f"{name}: refit with {c.label}")
         try:
-            fit1 = cand.refit(recording, rig_used, [_effect_with(c, s)], nominal)
+            fit1 = cand.refit(recording, rig_used, [_effect_with(c, s)], nominal, s.get("start_values"))
         except Exception as exc:  # noqa: BLE001 - a failed refit is reported in the result
             if not cand.is_solver_failure(exc):
                 raise

@@ -83,7 +83,8 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
                   free: Sequence[str] | None = None, *, validation_fraction: float = 0.3,
                   segment_samples: int = 50, prefit_samples: int = 2000, starts: int = 3,
                   rtol: float = 1e-6, threads: int = 2, max_iter: int = 40, verbose: bool = False,
-                  quiet: bool = False, warm_start: FitResult | None = None) -> FitResult:
+                  quiet: bool = False, warm_start: FitResult | None = None,
+                  start_values: dict | None = None) -> FitResult:
     """Fit the rig's uncertain parameters (and those of ``effects``) to ``recording``.
 
     Parameters
@@ -135,6 +136,9 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         and the alternative starts are skipped: the trust region and IPOPT start there directly.
         Scales and bounds stay those of ``rig``'s data-sheet values, so a warm and a cold fit
         solve the same problem.  ``solver["warm_start"]`` is True in the result.
+    start_values : dict, optional
+        ``{parameter name: value in SI units}`` to start from instead of the rig's (or the warm
+        fit's) values, e.g. friction levels that belong with a new effect's starting value.
 
     Raises
     ------
@@ -160,6 +164,10 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
     p_start = p_nominal.copy()
     if warm_start is not None:
         p_start = _warm_parameters(warm_start, model, p_start)
+    for name, value in (start_values or {}).items():
+        if name not in model.param_names:
+            raise FitError(f"start_values: unknown parameter {name!r}; the model has: {', '.join(model.param_names)}")
+        p_start[model.param_names.index(name)] = float(value)
     index = [model.param_names.index(name) for name in free]
     scales = np.array([parameter_scale(name, p_nominal[i]) for name, i in zip(free, index)])
     bounds = np.array([parameter_bounds(name, p_nominal[i]) for name, i in zip(free, index)])

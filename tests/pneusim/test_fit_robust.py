@@ -73,6 +73,21 @@ def test_warm_refit_with_the_missing_effect_reaches_noise(deadband_case, nominal
     assert refit.parameters["moving_mass_kg"].start == pytest.approx(nominal_fit.estimates["moving_mass_kg"])
 
 
+def test_start_values_override_the_warm_start(deadband_case, nominal_fit):
+    """Diagnosis starts a refit's friction levels where its screening left them: the named values
+    replace the warm fit's, the refit still reaches noise, and an unknown name is refused."""
+    from pneusim.errors import FitError
+
+    rig, rec, _ = deadband_case
+    moved = 0.8 * nominal_fit.estimates["friction_coulomb_N"]
+    refit = fit_recording(rec, rig, [make_effect("valve_deadband")], warm_start=nominal_fit,
+                          start_values={"friction_coulomb_N": moved}, quiet=True)
+    assert refit.parameters["friction_coulomb_N"].start == pytest.approx(moved)
+    assert refit.converged_to_noise and refit.normalised_residual < ABOVE_NOISE_WARNING
+    with pytest.raises(FitError, match="start_values: unknown parameter 'friction_kinetic_N'"):
+        fit_recording(rec, rig, warm_start=nominal_fit, start_values={"friction_kinetic_N": 1.0}, quiet=True)
+
+
 def test_warm_start_from_another_recording_is_refused(deadband_case, nominal_fit):
     from pneusim.errors import FitError
 
