@@ -73,9 +73,9 @@ LOAD_SCAN_FRACTIONS = (0.0, 0.15, -0.15)
 #: steps), from 2.0 with friction kept at the nominal level the start is 376 times the nominal cost
 #: and the steps do not recover it, from 2.0 with the mean kept it gains 8.6e3
 FRICTION_ASYMMETRY_SCAN = (1.0, 2.0, 0.5)
-#: candidates that start away from the nominal model get more trust-region evaluations
-SCANNED = ("transport_delay", "valve_dynamics", "heat_transfer", "supply_pressure_droop", "external_load",
-           "friction_asymmetry")
+#: candidates that start away from the nominal model get more trust-region evaluations (so do the
+#: friction-asymmetry starts away from 1: those with a ``start_scale``)
+SCANNED = ("transport_delay", "valve_dynamics", "heat_transfer", "supply_pressure_droop", "external_load")
 #: trust-region evaluations of a delay candidate: a delay moves every segment's trajectory, and the
 #: nominal parameters need more steps to follow than for a small effect
 DELAY_EVALUATIONS = 12
@@ -291,7 +291,7 @@ def screen(fit, recording, candidate: Candidate | None, noise: dict, samples: in
         if candidate is None or evaluations <= 0:
             return {"cost": cost_start, "cost_start": cost_start, "parameters": {},
                     "seconds": time.perf_counter() - started}
-        if candidate.name in SCANNED:
+        if candidate.name in SCANNED or candidate.start_scale:
             evaluations = max(evaluations, DELAY_EVALUATIONS)
         v, _, info = _stages.trust_region(pb, v0, lo, hi, max_evaluations=evaluations, defect_weight=DEFECT_WEIGHT)
         cost = _total_cost(pb, v)
