@@ -13,7 +13,7 @@ Steps (each in its own module):
    part *and* improve the validation fit by more than noise explains; where the nominal fit ended
    more than :data:`~pneusim.fit.stages.MODEL_SHORT` times above noise, the first finding's model
    is also fitted from the data sheet (the nominal parameters were bent to make up for the missing
-   physics) and the lower residual kept -- with nothing kept, the :data:`COLD_LEADS` refits that
+   physics) and the lower residual kept -- with nothing kept, the :data:`.datasheet.COLD_LEADS` refits that
    lowered the residual most, in each of their variants (leak paths), before the answer is
    ``other``; a second effect is then tried on top of the first.
 """
@@ -29,6 +29,7 @@ import numpy as np
 from ..errors import FitError, PneusimError
 from ..fit import fit_recording
 from ..fit.stages import MODEL_SHORT
+from .datasheet import NominalBaseline, refit_from_data_sheet
 from ..model import make_effect
 from ..recording import Recording, read_recording
 from ..rig import Rig, load_rig
@@ -53,9 +54,6 @@ FAMILIES = (("transport_delay", "valve_dynamics"),
 #: with no effect kept, a nominal residual rms above this multiple of the sensor noise is reported as
 #: an ``other`` finding (the nominal model is clearly short, but no vocabulary effect explains it)
 OTHER_RESIDUAL = 3.0
-#: with nothing kept on a nominal fit far above noise, this many refits are also fitted from the data
-#: sheet (each in every variant that is other physics) before the answer is ``other``
-COLD_LEADS = 2
 
 
 def _progress(enabled, message):
@@ -300,48 +298,10 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     kept = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
     rms_ratio = math.sqrt(cost0 / max(n_res, 1))
     if rms_ratio > MODEL_SHORT and refits:
-        # the nominal fit has bent its parameters to make up for the missing physics: the leading refit
-        # (the first finding) is also fitted from the data sheet, and the keep test applies to the better
-        # of the two.  With nothing kept, before the answer is 'other', the COLD_LEADS refits that lowered
-        # the estimation residual most are fitted from the data sheet, each in every variant that is other
-        # physics (a leak's three paths): the screening around a bent nominal fit also picks the variant
-        # unreliably (practice2_19, a leak from chamber A: screened on B, whose fit from the data sheet
-        # validates at -605 % where chamber A's validates at 98.3 %)
-        def say(message):
-            _progress(progress, f"{name}: {message}")
-
-        if kept:
-            leads = [kept[0]]
-        else:
-            by_drop = sorted(refits, key=lambda k: -(trials[k].estimation_cost_drop or -math.inf))
-            leads = [k for k in by_drop if (trials[k].estimation_cost_drop or 0.0) > 0.0][:COLD_LEADS] or by_drop[:1]
-        for lead in leads:
-            best_fit, c_lead = refits[lead]
-            variants = [c_lead] + ([] if kept else [c for c in candidates if c.name == lead
-                                                    and c.effect.option_values != c_lead.effect.option_values])
-            seen = []
-            for c in variants:
-                if c.effect.option_values in seen:
-                    continue
-                seen.append(c.effect.option_values)
-                refitted = next(e for e in best_fit.effects_ if e.name == lead)
-                effect = make_effect(lead, **c.effect.option_values, **refitted.values)
-                fit1 = _from_data_sheet(recording, rig_used, [effect], best_fit, noise, trials[lead], fit0,
-                                        validation_fraction, say)
-                if fit1 is best_fit:
-                    continue
-                cost1, _ = cand.estimation_cost(fit1, noise)
-                ok, thr, reason = cand.passes_test(cost0, cost1, n_res, c.n_added, fit0, fit1.fit_percent, floor)
-                trials[lead].status += f"; test from the data sheet: {reason}"
-                trials[lead].kept = ok
-                trials[lead].estimation_cost_drop = cost0 - cost1
-                trials[lead].parameters, _ = cand.effect_parameters(fit1, lead)
-                refits[lead] = (fit1, c)
-                best_fit = fit1
-                if ok:
-                    break
-            if trials[lead].kept:
-                break
+        # the nominal fit has bent its parameters to make up for the missing physics
+        refit_from_data_sheet(recording, rig_used, refits, trials, kept, candidates,
+                              NominalBaseline(noise, cost0, n_res, fit0, floor, validation_fraction),
+                              lambda message: _progress(progress, f"{name}: {message}"))
         kept = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
     if kept:
         first = kept[0]
@@ -418,44 +378,6 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     _progress(progress, f"{name}: findings {', '.join(result.effects) or 'none'}; final fit {final.fit_percent:.2f} % "
                         f"({result.seconds:.0f} s)")
     return result
-
-
-def _from_data_sheet(recording, rig, effects, warm, noise, trial, fit0, validation_fraction, say):
-    """``effects`` (a refit's, or a variant of it) fitted from the data sheet (a cold fit, one start),
-    starting at the warm refit's values; the fit of lower estimation cost is returned (``warm`` itself
-    if that).
-
-    Why: a nominal fit far above noise distorts the nominal parameters to make up for the missing
-    physics, and a refit warm-started there may stay in that basin (``practice2_01``, a 0.037 V valve
-    offset: the nominal fit took a static friction of 217 N against 43 N, and the warm refit found an
-    offset of 0.015 V with a standard error of 0.0005 V).  With the effect in the model the data
-    sheet's values are the natural start; both fits are of the same model and data, so the lower
-    residual decides, not the validation part.
-    """
-    named = [e.name + (f" ({', '.join(map(str, e.option_values.values()))})" if e.option_values else "")
-             for e in effects]
-    say(f"refit with {', '.join(named)} from the data sheet (the nominal fit ended "
-        f"more than {MODEL_SHORT:g} times above noise)")
-    started = time.perf_counter()
-    try:
-        cold = fit_recording(recording, rig, list(effects), validation_fraction=validation_fraction,
-                             starts=1, quiet=True)
-    except Exception as exc:  # noqa: BLE001 - the warm refit stands
-        if not cand.is_solver_failure(exc):
-            raise
-        trial.status += f"; from the data sheet: fit failed ({exc})"
-        return warm
-    c_warm, _ = cand.estimation_cost(warm, noise)
-    c_cold, _ = cand.estimation_cost(cold, noise)
-    better = c_cold < c_warm and cold.n_estimation == warm.n_estimation
-    trial.status += (f"; from the data sheet: estimation residual {c_cold:.4g} against {c_warm:.4g} warm-started, "
-                     f"validation {cold.fit_percent:.2f} % ({'taken' if better else 'not taken'}, "
-                     f"{time.perf_counter() - started:.0f} s)")
-    if not better:
-        return warm
-    trial.fit_percent, trial.improvement_points = cold.fit_percent, cold.fit_percent - fit0
-    trial.seconds = (trial.seconds or 0.0) + time.perf_counter() - started
-    return cold
 
 
 def _family(effect: str) -> tuple:
