@@ -61,7 +61,8 @@ def trust_region(pb: ShootingProblem, v0, lower, upper, max_evaluations: int = 8
     def jac(v):
         e = pb.evaluate(v, derivatives=True)
         if not e["ok"]:
-            raise FitError("the model could not be integrated at the pre-fit's point")
+            raise FitError("the model could not be integrated at a trust-region trial point (its parameters "
+                           "and segment start states)")
         jr, jg = pb.jacobians(v)
         return sparse.vstack([jr, defect_weight * jg]).tocsr()
 
