@@ -95,19 +95,8 @@ def _check_input(recording: Recording, rig: Rig, validation_fraction: float) -> 
     return n_est
 
 
-def _trajectory(fit) -> np.ndarray:
-    """The fitted model's states at every sample: the estimation part's fitted trajectory, then the
-    free simulation over the validation part."""
-    n = fit.recording.n_samples
-    X = np.full((n, len(fit.model.state_names)), np.nan)
-    if fit.estimation_states is not None:
-        X[:fit.n_estimation] = fit.estimation_states[:fit.n_estimation]
-    X[fit.n_estimation:] = fit.validation["states"]
-    return X
-
-
 def _named(fit) -> dict:
-    X = _trajectory(fit)
+    X = fit.trajectory()
     return {name: X[:, i] for i, name in enumerate(fit.model.state_names)}
 
 

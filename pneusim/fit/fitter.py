@@ -47,9 +47,9 @@ from ..recording import Recording
 from ..rig import Rig, load_rig
 from ..solver.sensitivity import command_schedule
 from .parameters import DEFAULT_FREE, EFFECT_FREE, SEARCHED, check_free, parameter_bounds, parameter_scale
-from .initial import initial_starts
+from .initial import better_first_state, initial_starts
 from .result import ABOVE_NOISE_WARNING, FitResult, ParameterEstimate
-from .shooting import FitData, ShootingProblem
+from .shooting import FitData, ShootingProblem, position_reading
 from .stages import MODEL_SHORT, full_fit, polish, prefit, trust_region, well_above
 from .uncertainty import covariance
 
@@ -242,9 +242,11 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
                 f"{info['evaluations']} evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_pre:.3g}"
                 + _routes_text(info))
             x_init = initial_starts(pb, theta0, recording, n_est)
+            fresh_first = x_init[0].copy()
             for j, first in enumerate(pb.starts.tolist()):
                 if first in pre_pb.starts and first < pre_pb.starts[-1]:
                     x_init[j] = prefit_states[list(pre_pb.starts).index(first)]
+            x_init[0] = better_first_state(pb, theta0, [x_init[0], fresh_first])
             v_ls, rms_ls, info = full_fit(pb, pb.join(theta0, x_init), lo, hi, rms_pre)
             say(f"start {k + 1}, fit ({n_est} samples): trust region {info['status']} after {info['evaluations']} "
                 f"evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_ls:.3g}" + _routes_text(info))
@@ -443,7 +445,7 @@ def _validate(model, params, recording: Recording, n_est: int, x0, delay_s, stro
     x = x[1:]
     y = recording.position_m[n_est:]
     out = {"t_start_s": float(recording.time_s[n_est]), "t_end_s": float(recording.time_s[-1]),
-           "fit_percent": fit_percent(y, x[:, 0]), "states": x}
+           "fit_percent": fit_percent(y, position_reading(x[:, 0], stroke_m)), "states": x}
     for name in ("pressure_a_Pa", "pressure_b_Pa"):
         values = getattr(recording, name)
         if values is not None:

@@ -27,10 +27,7 @@ def plot_fit(result: FitResult, path) -> Path:
     model = result.model
     n_est = result.n_estimation
     t = rec.time_s
-    fitted = np.full((rec.n_samples, len(model.state_names)), np.nan)
-    if result.estimation_states is not None:
-        fitted[:n_est] = result.estimation_states[:n_est]
-    fitted[n_est:] = result.validation["states"]
+    fitted = result.trajectory()
     signals = [("position_m", rec.position_m, 1e3, "position (mm)")]
     if rec.has_pressures:
         signals += [("pressure_a_Pa", rec.pressure_a_Pa, 1e-5, "p_A (bar abs)"),

@@ -130,6 +130,21 @@ class FitResult:
         return result
 
     # ----------------------------------------------------------------- access
+    def trajectory(self) -> np.ndarray:
+        """The fitted model at every sample of the recording, ``(n_samples, n_states)`` in SI units:
+        the estimation part's fitted trajectory (segment by segment), then the free simulation over
+        the validation part, with the position as the sensor reads it (within ``0 .. stroke``, see
+        :func:`.shooting.position_reading`).  NaN where there is nothing (no estimation states)."""
+        from .shooting import position_reading
+
+        X = np.full((self.recording.n_samples, len(self.model.state_names)), np.nan)
+        if self.estimation_states is not None:
+            X[:self.n_estimation] = self.estimation_states[:self.n_estimation]
+        X[self.n_estimation:] = self.validation["states"]
+        i = self.model.state_names.index("position_m")
+        X[:, i] = np.where(np.isfinite(X[:, i]), position_reading(X[:, i], self.rig.stroke_m), np.nan)
+        return X
+
     @property
     def estimates(self) -> dict[str, float]:
         """``{name: fitted value}`` in SI units."""

@@ -29,7 +29,15 @@ the case that ended at 2.64 from the data sheet reaches 1.00 with all eight trut
 negative damping with an e-folding time of milliseconds), so a 50-sample segment spanning one has
 huge sensitivities; the cost in (static friction, Stribeck velocity) is rippled by each mistimed
 micro-slip and the trust region stops at "step tolerance" (pre-fit 3.11 there; 10-sample segments
-1.49, still short of noise).
+1.49, still short of noise).  Two more causes were found on paper-2 open-loop steps without
+pressures (``s5006``, 2.05 times noise even from the truth): the first segment's unmeasured start
+state, estimated at the data sheet's parameters, sat in a wrong stick-slip basin (start velocity
+-0.37 m/s against -0.087 m/s, 20-27 times noise on the first ten samples), and the model's piston
+pressed 0.08 mm past the stop where the sensor reads at most the stroke (-1.4 times noise on
+average at every sample at the stop).  The fitter now searches the first state again at the
+pre-fit's parameters (:func:`.initial.better_first_state`) and compares the sensor's reading of
+the model position (:func:`.shooting.position_reading`): that case ends at 1.02 with six of the
+seven default truths within 3 sigma, and seven of the eight hardest cases reach noise.
 """
 
 from __future__ import annotations

@@ -33,7 +33,7 @@ from ..model import ActuatorModel
 from ..solver.backends import state_scales
 from ..solver.sensitivity import SensitivitySimulator, command_schedule
 
-__all__ = ["FitData", "ShootingProblem", "variable_scales"]
+__all__ = ["FitData", "ShootingProblem", "variable_scales", "position_reading"]
 
 #: typical magnitude of each state as a decision variable (segment start states are divided by it)
 _VARIABLE_SCALE = {"velocity_m_per_s": 0.1, "pressure_a_Pa": 1e5, "pressure_b_Pa": 1e5, "spool_opening": 1.0,
@@ -44,6 +44,18 @@ _VARIABLE_SCALE = {"velocity_m_per_s": 0.1, "pressure_a_Pa": 1e5, "pressure_b_Pa
 def variable_scales(model: ActuatorModel, stroke_m: float) -> np.ndarray:
     """Scales of the segment start states: the stroke for position, typical magnitudes otherwise."""
     return np.array([stroke_m if s == "position_m" else _VARIABLE_SCALE.get(s, 1.0) for s in model.state_names])
+
+
+def position_reading(position_m: np.ndarray, stroke_m: float) -> np.ndarray:
+    """What the position sensor reads of the model's piston position: the position within its range
+    ``0 .. stroke``.
+
+    Why: pressed against a stop the model's piston goes a little past it (the stop is a stiff spring:
+    0.08 mm on paper 2, larger than the 0.06 mm sensor noise), while the sensor's range ends at the
+    stroke (the converter of :mod:`pneusim.sensors` saturates there, as a real transducer does).
+    Compared unclipped, every sample at a stop left a residual of -1.4 times the noise on average
+    (paper 2, open-loop steps, 20 % of the samples at the stop: 1.14 times noise at the truth)."""
+    return np.clip(position_m, 0.0, stroke_m)
 
 
 @dataclass
@@ -96,6 +108,8 @@ class ShootingProblem:
     def __init__(self, model: ActuatorModel, params, free, scales, data: FitData, stroke_m: float,
                  segment_samples: int, delay_s: float = 0.0, rtol: float = 1e-6, threads: int = 2):
         self.model, self.free, self.data = model, list(free), data
+        self.stroke_m = float(stroke_m)
+        self.position_index = model.state_names.index("position_m")
         self.params = np.asarray(params, float).copy()
         self.scales = np.asarray(scales, float)
         self.index = np.array([model.param_names.index(name) for name in self.free], dtype=int)
@@ -244,9 +258,14 @@ class ShootingProblem:
             x, S = seg
             for (i, keep, r0), (_, _, values, sigma, _) in zip(self.row_blocks[j], self.outputs):
                 local = keep - self.starts[j]
-                r[r0:r0 + keep.size] = (x[local, i] - values[keep]) / sigma
+                model_out = x[local, i]
+                if i == self.position_index:
+                    within = ((model_out > 0.0) & (model_out < self.stroke_m)).astype(float)
+                    model_out = position_reading(model_out, self.stroke_m)
+                r[r0:r0 + keep.size] = (model_out - values[keep]) / sigma
                 if derivatives:
-                    jr.append((S[local, i, :] / sigma).ravel())
+                    rows = S[local, i, :] / sigma
+                    jr.append((rows * within[:, None] if i == self.position_index else rows).ravel())
             if j < self.n_segments - 1:
                 g[j * n:(j + 1) * n] = (x[-1] - starts[j + 1]) / self.g_scale
                 if derivatives:
