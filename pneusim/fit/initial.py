@@ -47,6 +47,13 @@ def initial_starts(pb: ShootingProblem, theta0, recording: Recording, stop: int)
     return starts
 
 
+def _segment_outputs(pb: ShootingProblem, j: int):
+    """``(first sample, samples, [(state index, measured values, noise std)])`` of segment ``j``."""
+    first, n_out = pb.starts[j], pb.stops[j] - pb.starts[j] + 1
+    return first, n_out, [(pb.model.state_names.index(name), values[first:first + n_out], sigma)
+                          for name, (values, sigma) in pb.data.signals.items()]
+
+
 def better_first_state(pb: ShootingProblem, theta, states) -> np.ndarray:
     """Of candidate start states of the first segment, the one whose simulation at the parameters
     ``theta`` fits that segment's samples best (normalised residual sum of squares).
@@ -59,9 +66,7 @@ def better_first_state(pb: ShootingProblem, theta, states) -> np.ndarray:
     estimated afresh at the pre-fit's parameters."""
     sim = pb.sims[0]
     sim.set_params(pb.params_of(theta))
-    first, n_out = pb.starts[0], pb.stops[0] - pb.starts[0] + 1
-    outputs = [(pb.model.state_names.index(name), values[first:first + n_out], sigma)
-               for name, (values, sigma) in pb.data.signals.items()]
+    first, n_out, outputs = _segment_outputs(pb, 0)
 
     def cost(x):
         try:
@@ -100,10 +105,8 @@ def _hidden_state(pb: ShootingProblem, j: int, x0: np.ndarray, params: np.ndarra
     sim.set_params(params)
     names = ["velocity_m_per_s"] + [s for s in ("pressure_a_Pa", "pressure_b_Pa") if s not in pb.data.signals]
     hidden = [model.state_names.index(s) for s in names]
-    first, n_out = pb.starts[j], pb.stops[j] - pb.starts[j] + 1
+    first, n_out, outputs = _segment_outputs(pb, j)
     t0 = pb.data.time_s[first]
-    outputs = [(model.state_names.index(name), values[first:first + n_out], sigma)
-               for name, (values, sigma) in pb.data.signals.items()]
     value = dict(zip(model.param_names, params))
     low = min(value["exhaust_Pa"], value["atmosphere_Pa"])
     high = value["supply_Pa"]

@@ -33,14 +33,9 @@ def covariance(pb: ShootingProblem, v: np.ndarray) -> dict:
     jr, _ = pb.jacobians(v)
     weights = np.ones_like(r)
     sigma_hat = {}
-    # a position sample read at the sensor's limit with the model's piston past it too (at a stop) is
-    # zero by construction (shooting.position_reading): it carries no noise and is not counted
-    censored = 0
     for (name_i, name, values, sigma, _), rows in zip(pb.outputs, _rows_by_output(pb)):
         raw = r[rows] * sigma
-        zero = int(np.sum(raw == 0.0)) if name_i == pb.position_index else 0
-        censored += zero
-        s = float(np.sqrt(np.sum(raw ** 2) / max(rows.size - zero, 1))) if rows.size else sigma
+        s = float(np.sqrt(np.mean(raw ** 2))) if rows.size else sigma
         sigma_hat[name] = s
         weights[rows] = sigma / max(s, 1e-300)
     jr = jr.multiply(weights[:, None]).tocsr()
@@ -54,7 +49,7 @@ def covariance(pb: ShootingProblem, v: np.ndarray) -> dict:
         BtA = B.T @ A
         info += A.T @ A - BtA.T @ np.linalg.pinv(B.T @ B, rcond=1e-12, hermitian=True) @ BtA
     rw = r * weights
-    scale = float(np.dot(rw, rw) / max(r.size - censored - nf - pb.n_segments * n, 1))
+    scale = float(np.dot(rw, rw) / max(r.size - nf - pb.n_segments * n, 1))
     w, V = np.linalg.eigh(0.5 * (info + info.T))
     tiny = w <= w.max() * 1e-12
     cov = (V * np.where(tiny, 0.0, 1.0 / np.where(tiny, 1.0, w))) @ V.T * scale
