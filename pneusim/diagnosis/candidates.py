@@ -308,11 +308,8 @@ def screen(fit, recording, candidate: Candidate | None, noise: dict, samples: in
 
 def refit(recording, rig, effects, warm, start_values=None):
     """The whole fit with ``effects`` switched on, warm-started from the fit ``warm`` (and from
-    ``start_values`` for the parameters named there), on the same estimation/validation split."""
-    # the split is the warm fit's: round(n * (n_est / n)) gives back n_est exactly
-    validation_fraction = 1.0 - warm.n_estimation / recording.n_samples
-    return fit_recording(recording, rig, effects, warm_start=warm, start_values=start_values, quiet=True,
-                         validation_fraction=validation_fraction)
+    ``start_values`` for the parameters named there), on the warm fit's estimation/validation split."""
+    return fit_recording(recording, rig, effects, warm_start=warm, start_values=start_values, quiet=True)
 
 
 def effect_parameters(fit, effect_name: str) -> tuple[dict, dict]:

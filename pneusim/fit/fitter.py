@@ -79,8 +79,12 @@ def noise_std_estimate(values: np.ndarray) -> float:
     return float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / np.sqrt(6.0))
 
 
+#: final fraction of a recording kept for validation unless told otherwise
+DEFAULT_VALIDATION_FRACTION = 0.3
+
+
 def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: Sequence[Effect] = (),
-                  free: Sequence[str] | None = None, *, validation_fraction: float = 0.3,
+                  free: Sequence[str] | None = None, *, validation_fraction: float | None = None,
                   segment_samples: int = 50, prefit_samples: int = 2000, starts: int = 3,
                   rtol: float = 1e-6, threads: int = 2, max_iter: int = 40, verbose: bool = False,
                   quiet: bool = False, warm_start: FitResult | None = None,
@@ -100,8 +104,9 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
     free : sequence of str, optional
         Names of the free parameters; default :data:`DEFAULT_FREE` plus the
         effects' parameters.
-    validation_fraction : float
-        Final fraction of the recording kept for validation, in (0, 0.9].
+    validation_fraction : float, optional
+        Final fraction of the recording kept for validation, in (0, 0.9]; default 0.3, or with
+        ``warm_start`` that fit's own split (a refit must fit the same estimation part).
     segment_samples : int
         Samples per shooting segment.
     prefit_samples : int
@@ -158,6 +163,10 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         raise FitError(f"--free {searched[0]}: a transport delay moves the command switch times and has no "
                        "gradient; fix it with --effect transport_delay:delay_s=VALUE and compare the fits over a "
                        "few fixed delays")
+    if validation_fraction is None:
+        # the warm fit's split: round(n * (n_est / n)) gives back n_est exactly
+        validation_fraction = (1.0 - warm_start.n_estimation / recording.n_samples if warm_start is not None
+                               else DEFAULT_VALIDATION_FRACTION)
     if not 0.0 < validation_fraction <= 0.9:
         raise FitError(f"validation_fraction must be in (0, 0.9], got {validation_fraction}")
     p_nominal = model.param_vector(rig)

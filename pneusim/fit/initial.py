@@ -47,11 +47,19 @@ def initial_starts(pb: ShootingProblem, theta0, recording: Recording, stop: int)
     return starts
 
 
-def _segment_outputs(pb: ShootingProblem, j: int):
-    """``(first sample, samples, [(state index, measured values, noise std)])`` of segment ``j``."""
+def _segment_residuals(pb: ShootingProblem, j: int, x: np.ndarray, sensitivities: bool = False):
+    """``(r, J)``: the normalised residuals of segment ``j``'s samples simulated from the start state
+    ``x`` by ``pb.sims[0]`` (at the parameters last set on it), and with ``sensitivities`` their
+    Jacobian over all of that simulator's sensitivity columns (else None).  A missing sample gives a
+    zero residual.  Raises :class:`PneusimError` where the integration fails."""
     first, n_out = pb.starts[j], pb.stops[j] - pb.starts[j] + 1
-    return first, n_out, [(pb.model.state_names.index(name), values[first:first + n_out], sigma)
-                          for name, (values, sigma) in pb.data.signals.items()]
+    xs, S = pb.sims[0].run(pb.data.time_s[first], np.asarray(x, float), pb.schedules[j], n_out, sensitivities)
+    outputs = [(pb.model.state_names.index(name), values[first:first + n_out], sigma)
+               for name, (values, sigma) in pb.data.signals.items()]
+    r = np.concatenate([np.nan_to_num((xs[:, i] - y) / s) for i, y, s in outputs])
+    if not sensitivities:
+        return r, None
+    return r, np.concatenate([np.nan_to_num(S[:, i, :] / s * np.isfinite(y)[:, None]) for i, y, s in outputs])
 
 
 def better_first_state(pb: ShootingProblem, theta, states) -> np.ndarray:
@@ -64,16 +72,13 @@ def better_first_state(pb: ShootingProblem, theta, states) -> np.ndarray:
     -0.37 m/s against -0.087 true, residuals of 20-27 times noise on the first ten samples and 2.06
     times noise over the whole fit).  The fitter offers the pre-fit's own first state and one
     estimated afresh at the pre-fit's parameters."""
-    sim = pb.sims[0]
-    sim.set_params(pb.params_of(theta))
-    first, n_out, outputs = _segment_outputs(pb, 0)
+    pb.sims[0].set_params(pb.params_of(theta))
 
     def cost(x):
         try:
-            xs, _ = sim.run(pb.data.time_s[first], np.asarray(x, float), pb.schedules[0], n_out, False)
+            r, _ = _segment_residuals(pb, 0, x)
         except PneusimError:
             return np.inf
-        r = np.concatenate([np.nan_to_num((xs[:, i] - y) / s) for i, y, s in outputs])
         return float(np.dot(r, r))
 
     return np.asarray(min(states, key=cost), float).copy()
@@ -105,8 +110,6 @@ def _hidden_state(pb: ShootingProblem, j: int, x0: np.ndarray, params: np.ndarra
     sim.set_params(params)
     names = ["velocity_m_per_s"] + [s for s in ("pressure_a_Pa", "pressure_b_Pa") if s not in pb.data.signals]
     hidden = [model.state_names.index(s) for s in names]
-    first, n_out, outputs = _segment_outputs(pb, j)
-    t0 = pb.data.time_s[first]
     value = dict(zip(model.param_names, params))
     low = min(value["exhaust_Pa"], value["atmosphere_Pa"])
     high = value["supply_Pa"]
@@ -115,23 +118,20 @@ def _hidden_state(pb: ShootingProblem, j: int, x0: np.ndarray, params: np.ndarra
     z_lo, z_hi = x_lo[hidden] / pb.x_scale[hidden], x_hi[hidden] / pb.x_scale[hidden]
     z_prior = np.clip(x0[hidden] / pb.x_scale[hidden], z_lo, z_hi)
     prior_width = np.array([_PRIOR_WIDTH[n] for n in names]) / pb.x_scale[hidden]
-    n_res = sum(o[1].size for o in outputs) + len(hidden)
+    n_res = (pb.stops[j] - pb.starts[j] + 1) * len(pb.data.signals) + len(hidden)
+    cols = [pb.n_free + i for i in hidden]
 
     def residuals(z, jac=False):
         x = x0.copy()
         x[hidden] = z * pb.x_scale[hidden]
         try:
-            xs, S = sim.run(t0, x, pb.schedules[j], n_out, jac)
+            r, J = _segment_residuals(pb, j, x, jac)
         except PneusimError:
             return (np.full(n_res, 1e6), np.zeros((n_res, len(hidden)))) if jac else np.full(n_res, 1e6)
-        r = np.concatenate([np.nan_to_num((xs[:, i] - y) / s) for i, y, s in outputs]
-                           + [(z - z_prior) / prior_width])
+        r = np.concatenate([r, (z - z_prior) / prior_width])
         if not jac:
             return r
-        cols = [pb.n_free + i for i in hidden]
-        J = np.concatenate([np.nan_to_num(S[:, i, :][:, cols] / s * np.isfinite(y)[:, None]) for i, y, s in outputs]
-                           + [np.diag(1.0 / prior_width)])
-        return r, J
+        return r, np.vstack([J[:, cols], np.diag(1.0 / prior_width)])
 
     def cost(z):
         r = residuals(z)

@@ -142,7 +142,7 @@ class FitResult:
             X[:self.n_estimation] = self.estimation_states[:self.n_estimation]
         X[self.n_estimation:] = self.validation["states"]
         i = self.model.state_names.index("position_m")
-        X[:, i] = np.where(np.isfinite(X[:, i]), position_reading(X[:, i], self.rig.stroke_m), np.nan)
+        X[:, i] = position_reading(X[:, i], self.rig.stroke_m)   # NaN stays NaN
         return X
 
     @property

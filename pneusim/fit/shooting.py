@@ -69,8 +69,7 @@ def expected_position_reading(position_m: np.ndarray, stroke_m: float, noise_std
     x = np.asarray(position_m, float)
     s = float(noise_std_m)
     if s <= 0:
-        inside = (x > 0.0) & (x < stroke_m)
-        return np.clip(x, 0.0, stroke_m), inside.astype(float)
+        return position_reading(x, stroke_m), ((x > 0.0) & (x < stroke_m)).astype(float)
     z_high, z_low = (x - stroke_m) / s, -x / s
     # E[max(X - c, 0)] = s g((x - c)/s) with g(z) = z Phi(z) + phi(z), g' = Phi
     g = lambda z: z * ndtr(z) + np.exp(-0.5 * z * z) / np.sqrt(2.0 * np.pi)
@@ -286,13 +285,13 @@ class ShootingProblem:
             x, S = seg
             for (i, keep, r0), (_, _, values, sigma, _) in zip(self.row_blocks[j], self.outputs):
                 local = keep - self.starts[j]
-                model_out = x[local, i]
+                model_out, slope = x[local, i], None
                 if i == self.position_index:
                     model_out, slope = expected_position_reading(model_out, self.stroke_m, sigma)
                 r[r0:r0 + keep.size] = (model_out - values[keep]) / sigma
                 if derivatives:
                     rows = S[local, i, :] / sigma
-                    jr.append((rows * slope[:, None] if i == self.position_index else rows).ravel())
+                    jr.append((rows if slope is None else rows * slope[:, None]).ravel())
             if j < self.n_segments - 1:
                 g[j * n:(j + 1) * n] = (x[-1] - starts[j + 1]) / self.g_scale
                 if derivatives:
