@@ -14,8 +14,10 @@
 4. **fit** — the whole estimation part from the pre-fit: trust region (where
    that ends above noise and well above the pre-fit, also with the continuity weight raised in turn:
    :func:`.stages.full_fit`), then IPOPT (:mod:`.nlp`) on the exact constrained problem; a fit that
-   ends well above its pre-fit's residual is retried from the next start, unless the pre-fit itself
-   ends more than :data:`.stages.MODEL_SHORT` times above noise (the model lacks physics there);
+   ends well above its pre-fit's residual, or above noise after a pre-fit above noise, is retried
+   from the next start (the best kept; a start whose pre-fit ends where an earlier one's did is not
+   fitted again), unless the pre-fit itself ends more than
+   :data:`.stages.MODEL_SHORT` times above noise (the model lacks physics there);
 5. **uncertainty** — the Gauss-Newton covariance of the estimates with the
    segment states as nuisance parameters, each signal weighted by its residual
    standard deviation (:mod:`.uncertainty`); standard errors, correlations and
@@ -51,6 +53,7 @@ from .initial import better_first_state, initial_starts
 from .result import ABOVE_NOISE_WARNING, FitResult, ParameterEstimate
 from .shooting import FitData, ShootingProblem, position_reading
 from .stages import MODEL_SHORT, full_fit, polish, prefit, trust_region, well_above
+from .threads import one_blas_thread
 from .uncertainty import covariance
 
 __all__ = ["fit_recording", "noise_std_estimate"]
@@ -79,10 +82,16 @@ def noise_std_estimate(values: np.ndarray) -> float:
     return float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / np.sqrt(6.0))
 
 
+#: a restart's pre-fit ending within this relative distance of an earlier start's is the same basin:
+#: practice2_30's three pre-fits ended within 4.5e-4 of each other and all three fits at 1.63-1.64;
+#: a paper-1 recording's first two 0.9 % apart (2.700, 2.725) had fits at 4.29 and 3.10
+SAME_PREFIT = 1e-3
+
 #: final fraction of a recording kept for validation unless told otherwise
 DEFAULT_VALIDATION_FRACTION = 0.3
 
 
+@one_blas_thread
 def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: Sequence[Effect] = (),
                   free: Sequence[str] | None = None, *, validation_fraction: float | None = None,
                   segment_samples: int = 50, prefit_samples: int = 2000, starts: int = 3,
@@ -250,6 +259,15 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
             say(f"start {k + 1}, pre-fit ({pre_pb.data.n_samples} samples): trust region {info['status']} after "
                 f"{info['evaluations']} evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_pre:.3g}"
                 + _routes_text(info))
+            same = [a["start"] for a in attempts[:-1] if abs(rms_pre / a["rms_normalised"] - 1.0) < SAME_PREFIT]
+            if same:
+                # the window's same basin: the whole part's fit from there is known (practice2_30, heat
+                # transfer left out: all three pre-fits ended at 1.49 and all three fits at 1.63-1.64,
+                # 85 s; skipping the fits of starts 2 and 3, 34 s)
+                attempts[-1]["fit_skipped"] = f"pre-fit ended where start {same[0]}'s did"
+                say(f"start {k + 1}: the pre-fit ended where start {same[0]}'s did ({rms_pre:.3g}), the same basin: "
+                    "not fitted again")
+                continue
             x_init = initial_starts(pb, theta0, recording, n_est)
             fresh_first = x_init[0].copy()
             for j, first in enumerate(pb.starts.tolist()):
@@ -266,7 +284,11 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
             fits.append((res.objective if np.isfinite(res.objective) else np.inf, k, res))
             say(f"start {k + 1}, fit: IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s), "
                 f"normalised rms residual {rms:.3g}")
-            if not well_above(rms, rms_pre):
+            # restart when the fit ended well above its pre-fit (the short window had a second basin)
+            # or when both ended above noise: the window's basin need not be the whole part's (paper 1,
+            # closed-loop multisine without pressures: start 1's pre-fit 2.14 and fit 2.37 times noise
+            # with the Stribeck velocity at 3.4 times the truth; start 2's pre-fit 2.99, fit 0.996)
+            if not (well_above(rms, rms_pre) or min(rms, rms_pre) > ABOVE_NOISE_WARNING):
                 break
             if rms_pre > MODEL_SHORT:
                 # the restart is for a short window's second basin; a pre-fit this far above noise says

@@ -9,19 +9,23 @@
   fitted with the friction smoothing velocity freed beside the seven defaults (see
   :mod:`pneusim.fit.robustness` for why): the fit reaches the noise level and the truth lies within
   3 sigma for at least six of the seven default parameters.  Opt-in (``PNEUSIM_FIT_ROBUST=1``):
-  7 of the 8 pass (85 s with two workers); ``s5000`` still ends at 4.9 times noise.
+  7 of the 8 pass (85 s with two workers); ``s5000`` still ends above noise.
+* Two cases of the robustness set run by default: a restart when the first start ends above noise
+  (``s1041``), and a recording that starts mid stick-slip with end stops (``s5006``).
+* The robustness score counts a parameter whose standard error is not finite as outside 3 sigma.
 """
 
 import json
 import os
 
+import numpy as np
 import pytest
 
 from pneusim.cli import main
 from pneusim.experiment import standard_experiment
 from pneusim.fit import fit_recording
 from pneusim.fit.result import ABOVE_NOISE_WARNING, FAR_ABOVE_NOISE
-from pneusim.fit.robustness import fit_free, hardest_cases, make_case, score
+from pneusim.fit.robustness import fit_free, hardest_cases, make_case, robustness_cases, score
 from pneusim.model import make_effect
 from pneusim.recording import write_recording
 from pneusim.rig import load_rig
@@ -67,7 +71,7 @@ def test_warm_refit_with_the_missing_effect_reaches_noise(deadband_case, nominal
     assert refit.converged_to_noise and refit.normalised_residual < ABOVE_NOISE_WARNING
     assert refit.warnings == [] or not any("above the sensor noise" in w for w in refit.warnings)
     p = refit.parameters["valve_deadband.deadband_V"]
-    assert abs(p.estimate - DEADBAND_V) <= 3.0 * p.std and abs(p.estimate / DEADBAND_V - 1.0) < 0.05
+    assert np.isfinite(p.std) and abs(p.estimate - DEADBAND_V) <= 3.0 * p.std and abs(p.estimate / DEADBAND_V - 1.0) < 0.05
     # the nominal parameters start from the nominal fit's values, not from the data sheet
     assert p.start == pytest.approx(0.2)
     assert refit.parameters["moving_mass_kg"].start == pytest.approx(nominal_fit.estimates["moving_mass_kg"])
@@ -109,7 +113,7 @@ def test_cli_exits_3_far_above_noise(deadband_case, tmp_path, capsys):
 
 @pytest.mark.skipif(not os.environ.get("PNEUSIM_FIT_ROBUST"),
                     reason="open (issue 9): 1 of these 8 fits stops above noise (paper 2 closed-loop steps "
-                           "without pressures, s5000, at 4.9 times noise), and the 8 take about 90 s with two "
+                           "without pressures, s5000, at 3.6 times noise after two starts), and the 8 take about 90 s with two "
                            "workers; set PNEUSIM_FIT_ROBUST=1 to run")
 @pytest.mark.parametrize("spec", hardest_cases(8), ids=lambda s: s.name)
 def test_hardest_kinds_reach_noise_with_truth_inside_three_sigma(spec):
@@ -117,6 +121,23 @@ def test_hardest_kinds_reach_noise_with_truth_inside_three_sigma(spec):
     result = fit_recording(rec, rig, free=fit_free(True), quiet=True)
     s = score(result, truth)
     assert result.converged_to_noise, (result.normalised_residuals, result.solver["prefit_attempts"])
+    assert s["inside_3_sigma"] >= s["parameters"] - 1, s["z"]
+
+
+@pytest.mark.minutes
+def test_fit_restarts_when_the_first_start_ends_above_noise():
+    """Paper 1, closed-loop multisine without pressures (``s1041`` of the robustness set): the first
+    start's pre-fit ends at 2.14 and its fit at 2.37 times noise, with the Stribeck velocity at 3.4
+    times the truth.  The fit did not restart (it had not ended *well above* its pre-fit); now a fit
+    and pre-fit both above noise try the next start, whose fit reaches the noise."""
+    spec = next(s for s in robustness_cases(48) if s.seed == 1041)
+    assert (spec.rig_name, spec.kind, spec.loop, spec.pressures) == ("paper1-mre", "multisine", "closed", False)
+    rig, truth, rec = make_case(spec)
+    result = fit_recording(rec, rig, free=fit_free(True), quiet=True)
+    attempts = result.solver["prefit_attempts"]
+    assert len(attempts) >= 2 and attempts[0]["fit_rms_normalised"] > 1.1, attempts
+    s = score(result, truth)
+    assert result.converged_to_noise, (result.normalised_residuals, attempts)
     assert s["inside_3_sigma"] >= s["parameters"] - 1, s["z"]
 
 
@@ -154,3 +175,25 @@ def test_expected_reading_of_a_saturating_sensor_matches_monte_carlo():
     h = 1e-9
     numeric = (expected_position_reading(x + h, stroke, sigma)[0] - expected_position_reading(x - h, stroke, sigma)[0]) / (2 * h)
     assert np.allclose(slope, numeric, atol=1e-5)
+
+
+def test_score_counts_an_unconstrained_parameter_as_outside_three_sigma():
+    """A standard error that is not finite (a direction the data did not constrain: the covariance
+    says inf) covers nothing.  Dividing by it gave z = 0, and two paper-1 fits stuck at 2.4 and 3.1
+    times noise counted 7 of 7 truths inside 3 sigma."""
+    from types import SimpleNamespace
+
+    from pneusim.fit import DEFAULT_FREE
+    from pneusim.fit.result import ParameterEstimate
+
+    truth = {name: 1.0 for name in DEFAULT_FREE}
+    stds = [np.inf, 0.0, np.nan, 0.1, 0.1, 0.01, 0.5][:len(DEFAULT_FREE)]
+    estimates = [1.05, 1.0, 1.0, 1.2, 1.4, 1.0, 2.0][:len(DEFAULT_FREE)]
+    parameters = {name: ParameterEstimate(name, e, s, 1.0, 0.0, 10.0)
+                  for name, e, s in zip(DEFAULT_FREE, estimates, stds)}
+    result = SimpleNamespace(parameters=parameters, normalised_residual=2.4, converged_to_noise=False,
+                             solver={"seconds": 1.0})
+    s = score(result, truth)
+    # inside: z = 2 (1.2 +- 0.1), 0 (1.0 +- 0.01), 2 (2.0 +- 0.5); outside: inf, zero and NaN std, z = 4
+    assert s["inside_3_sigma"] == 3 and s["parameters"] == 7
+    assert all(np.isinf(s["z"][name]) for name in DEFAULT_FREE[:3])
