@@ -29,6 +29,7 @@ import numpy as np
 from ..errors import FitError, PneusimError
 from ..fit import fit_recording
 from ..fit.stages import MODEL_SHORT
+from ..fit.threads import one_blas_thread
 from .datasheet import NominalBaseline, refit_from_data_sheet
 from ..model import make_effect
 from ..recording import Recording, read_recording
@@ -112,6 +113,7 @@ def _derived(name: str, values: dict, fit) -> dict:
     return out
 
 
+@one_blas_thread
 def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 0.3, max_refits: int = 3,
              max_lookalikes: int = 2, max_findings: int = 2, screen_samples: int | None = None,
              progress: bool = False) -> DiagnosisResult:
