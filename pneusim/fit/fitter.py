@@ -69,6 +69,11 @@ _START_FACTORS = (
      "friction_viscous_N_s_per_m": 0.5, "moving_mass_kg": 0.7},
 )
 
+#: a restart's pre-fit ending within this relative distance of an earlier start's is the same basin:
+#: practice2_30's three pre-fits ended within 4.5e-4 of each other and all three fits at 1.63-1.64;
+#: a paper-1 recording's first two 0.9 % apart (2.700, 2.725) had fits at 4.29 and 3.10
+SAME_PREFIT = 1e-3
+
 
 def noise_std_estimate(values: np.ndarray) -> float:
     """Sensor noise from the data: robust std of second differences, ``MAD / 0.6745 / sqrt(6)``.
@@ -81,11 +86,6 @@ def noise_std_estimate(values: np.ndarray) -> float:
         return 0.0
     return float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / np.sqrt(6.0))
 
-
-#: a restart's pre-fit ending within this relative distance of an earlier start's is the same basin:
-#: practice2_30's three pre-fits ended within 4.5e-4 of each other and all three fits at 1.63-1.64;
-#: a paper-1 recording's first two 0.9 % apart (2.700, 2.725) had fits at 4.29 and 3.10
-SAME_PREFIT = 1e-3
 
 #: final fraction of a recording kept for validation unless told otherwise
 DEFAULT_VALIDATION_FRACTION = 0.3
