@@ -15,7 +15,9 @@ Every recording of the set (default ``../shared/practice2``) is diagnosed on the
   (the peer: what any fit-based diagnosis has to pay at least).
 
 The table is written to ``results/diagnosis-<set>/score.md`` beside the per-recording results and
-``summary.csv``.  ``PNEUSIM_DIAGNOSIS_LIMIT=N`` diagnoses the first N files only (a quick look).
+``summary.csv``.  ``PNEUSIM_DIAGNOSIS_LIMIT=N`` diagnoses the first N files only (a quick look);
+``PNEUSIM_DIAGNOSIS_RIG=paper2-enfield`` only the recordings whose ``rig`` metadata names that rig
+(the table then goes to ``results/diagnosis-<set>-<rig>/``).
 """
 
 import json
@@ -35,6 +37,11 @@ def _load():
     if not answers.is_file():
         pytest.skip(f"no practice set with answers at {SET}")
     files = sorted(SET.glob("*.csv"))
+    rig = os.environ.get("PNEUSIM_DIAGNOSIS_RIG")
+    if rig:   # the recordings' own metadata chooses, not the answers
+        from pneusim.recording import read_recording
+
+        files = [f for f in files if read_recording(f).rig == rig]
     limit = int(os.environ.get("PNEUSIM_DIAGNOSIS_LIMIT", "0") or 0)
     return files[:limit] if limit else files, json.loads(answers.read_text())["cases"]
 
@@ -80,7 +87,8 @@ def _table(s, load, ratio) -> str:
     def frac(p):
         return f"{p[0]}/{p[1]} ({100 * p[0] / p[1]:.0f} %)" if p[1] else "n/a"
 
-    lines = [f"# Diagnosis score on `{SET.name}`", "",
+    rig = os.environ.get("PNEUSIM_DIAGNOSIS_RIG")
+    lines = [f"# Diagnosis score on `{SET.name}`" + (f" (recordings of `{rig}` only)" if rig else ""), "",
              "| measure | value |", "|---|---|",
              f"| true effect ranked first (one-effect cases) | {frac(s['top1'])} |",
              f"| first finding one of the two (two-effect cases) | {frac(s['two_effect_first'])} |",
@@ -106,7 +114,8 @@ def test_diagnose_practice_set(benchmark):
     from pneusim.diagnosis.batch import diagnose_many
 
     files, cases = _load()
-    out = HERE / "results" / f"diagnosis-{SET.name}"
+    rig = os.environ.get("PNEUSIM_DIAGNOSIS_RIG")
+    out = HERE / "results" / (f"diagnosis-{SET.name}" + (f"-{rig}" if rig else ""))
     workers = int(os.environ.get("PNEUSIM_DIAGNOSIS_WORKERS", "1"))
     rows = benchmark.pedantic(lambda: diagnose_many(files, out, workers=workers, report=True, progress=True),
                               rounds=1, iterations=1)

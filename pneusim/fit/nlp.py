@@ -49,6 +49,47 @@ class IpoptResult:
     formulation: str = "continuity constraints"
 
 
+class _ClimbWatch(ca.Callback):
+    """IPOPT's iteration callback: asks IPOPT to stop once ``patience`` iterates in a row have an
+    objective above ``limit`` times the first iterate's (IPOPT then returns ``User_Requested_Stop``)."""
+
+    def __init__(self, n_v: int, n_g: int, limit: float, patience: int):
+        ca.Callback.__init__(self)
+        self.n_v, self.n_g, self.limit, self.patience = n_v, n_g, limit, patience
+        self.first = None
+        self.above = 0
+        self.construct("pneusim_climb_watch", {})
+
+    def get_n_in(self):
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        return "ret"
+
+    def get_sparsity_in(self, i):
+        name = ca.nlpsol_out(i)
+        if name == "f":
+            return ca.Sparsity.dense(1, 1)
+        if name in ("x", "lam_x"):
+            return ca.Sparsity.dense(self.n_v, 1)
+        if name in ("g", "lam_g"):
+            return ca.Sparsity.dense(self.n_g, 1)
+        return ca.Sparsity(0, 0)
+
+    def eval(self, arg):
+        f = float(arg[1])
+        if self.first is None:
+            self.first = f
+        self.above = self.above + 1 if f > self.limit * abs(self.first) else 0
+        return [1 if self.above >= self.patience else 0]
+
+
 class _Oracle(ca.Callback):
     """One of the NLP's functions, computed from the problem's cached evaluation at ``x``.
 
@@ -141,7 +182,8 @@ class _Oracle(ca.Callback):
 
 def solve_ipopt(problem: ShootingProblem, v0: np.ndarray, lower: np.ndarray, upper: np.ndarray,
                 max_iter: int = 60, defect_tol: float = 2e-5, objective_change_tol: float = 1e-3,
-                print_level: int = 0, penalty: float | None = None) -> IpoptResult:
+                print_level: int = 0, penalty: float | None = None,
+                give_up_climb: tuple[float, int] | None = None) -> IpoptResult:
     """Solve the shooting problem from ``v0`` within bounds ``[lower, upper]`` with IPOPT.
 
     The residuals come from an adaptive integrator, so they carry its error
@@ -150,6 +192,10 @@ def solve_ipopt(problem: ShootingProblem, v0: np.ndarray, lower: np.ndarray, upp
     below ``10 defect_tol`` (state-scaled) and change the objective by less than
     ``objective_change_tol`` relative (or, for a converged KKT point, defects
     below ``defect_tol``).
+
+    ``give_up_climb = (factor, patience)``: stop once ``patience`` iterates in a row have an
+    objective above ``factor`` times the starting point's (status ``User_Requested_Stop``), for a
+    caller that would reject such a solution anyway.
     """
     oracles = {kind: _Oracle(f"pneusim_{kind}", problem, kind, penalty)
                for kind in ("values", "grad_f", "jac_g", "hess_lag")}
@@ -167,6 +213,8 @@ def solve_ipopt(problem: ShootingProblem, v0: np.ndarray, lower: np.ndarray, upp
             "ipopt.bound_frac": 1e-8, "ipopt.nlp_scaling_method": "none"}
     if penalty is None:
         opts["jac_g"] = oracles["jac_g"]
+    if give_up_climb is not None:
+        opts["iteration_callback"] = _ClimbWatch(problem.n_v, g.size1(), *give_up_climb)
     solver = ca.nlpsol("pneusim_fit", "ipopt", {"x": v, "f": f, "g": g}, opts)
     v0 = np.clip(np.asarray(v0, float), lower, upper)
     started = time.perf_counter()

@@ -116,3 +116,31 @@ def test_json_result_has_the_documented_fields(tmp_path):
     assert v["t_start_s"] == pytest.approx(rec.time_s[int(round(0.7 * rec.n_samples))])
     assert v["t_end_s"] == pytest.approx(rec.time_s[-1]) and v["fit_percent"] > 99.0
     assert data["solver"]["status"] and data["solver"]["seconds"] > 0
+
+
+def test_climb_watch_stops_only_a_sustained_climb():
+    from pneusim.fit.nlp import _ClimbWatch
+
+    def stops(objectives, limit=8.0, patience=5):
+        watch = _ClimbWatch(3, 0, limit, patience)
+        return [watch.eval([None, f])[0] for f in objectives]
+
+    # a restoration spike of three iterates above the limit, then back down: never stopped
+    assert not any(stops([1.0, 0.98, 6224.0, 6110.0, 6110.0, 0.97, 0.48]))
+    # climbing to stay: stopped at the fifth iterate in a row above eight times the start
+    assert stops([1.0, 11.0, 10.8, 10.7, 10.7, 10.7, 10.7]) == [0, 0, 0, 0, 0, 1, 1]
+    # a climb that stays below the limit and comes back (kept fits do this) is left alone
+    assert not any(stops([1.0, 2.9, 3.4, 4.4, 3.6, 2.5, 1.9, 0.85]))
+
+
+def test_a_constrained_run_given_up_falls_back_to_the_penalty_and_still_recovers(monkeypatch):
+    import pneusim.fit.stages as stages
+
+    rig, truth, rec = _recording("paper2-enfield", "closed", True, seed=5, noise_scale=1.0, duration=20.0)
+    # give the constrained run up at its first iterate: the answer must then come from the penalty form
+    monkeypatch.setattr(stages, "GIVE_UP_CLIMB", (0.0, 1))
+    result = fit_recording(rec, rig, quiet=True)
+    assert "User_Requested_Stop" in result.solver["formulation"]
+    assert result.converged_to_noise
+    for key, p in result.parameters.items():
+        assert abs(p.estimate - truth[key]) < 3 * p.std + 0.01 * abs(truth[key]), (key, p.estimate, truth[key])
