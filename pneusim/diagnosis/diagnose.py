@@ -30,7 +30,7 @@ from ..errors import FitError, PneusimError
 from ..fit import fit_recording
 from ..fit.stages import MODEL_SHORT
 from ..fit.threads import one_blas_thread
-from .datasheet import NominalBaseline, refit_from_data_sheet
+from .datasheet import NominalBaseline, refit_from_data_sheet, untried_families_from_data_sheet
 from ..model import make_effect
 from ..recording import Recording, read_recording
 from ..rig import Rig, load_rig
@@ -297,6 +297,20 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
                               NominalBaseline(noise, cost0, n_res, fit0, floor, validation_fraction),
                               lambda message: _progress(progress, f"{name}: {message}"))
         kept = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
+        best_cost = min((cand.estimation_cost(refits[k][0], noise)[0] for k in kept), default=math.inf)
+        if kept and math.sqrt(best_cost / max(n_res, 1)) > MODEL_SHORT:
+            # the finding has not explained the recording: the families never refitted get one fit each
+            tried = {_family(k) for k in refits}
+            untried = []
+            for k in ranked:
+                if _family(k) not in tried and math.isfinite(best_variant[k][0]):
+                    tried.add(_family(k))
+                    untried.append((k, best_variant[k][1]))
+            untried_families_from_data_sheet(
+                recording, rig_used, untried, refits, trials,
+                NominalBaseline(noise, cost0, n_res, fit0, floor, validation_fraction),
+                lambda message: _progress(progress, f"{name}: {message}"))
+            kept = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
     if kept:
         first = kept[0]
         final = refits[first][0]
