@@ -23,7 +23,12 @@ the winner's look-alikes with a positive score are refitted.  A candidate is kep
 2. *validation part* (never fitted): the position fit improves by more than noise explains,
    ``fit1 - fit0 > max(0.5, F)`` points, where ``F = 100 sigma sqrt(N_val) / ||y - mean(y)||`` is
    the fit that white sensor noise alone takes away, and the validation error ``100 - fit``
-   shrinks by at least 10 %.
+   shrinks by at least 10 %.  Near the noise floor the fixed 0.5 points is more than the model can
+   gain; there a candidate also passes when it takes a validation error of at least
+   :data:`CLEARLY_SHORT` times ``F`` down to at most :data:`AT_NOISE` times ``F``, by more than ``F``:
+   the nominal model is clearly short on the held-out data and the effect explains it down to noise
+   (``practice2_17``, pressure-dependent friction: 2.26 F -> 1.01 F, +0.41 points; the four paper-2
+   controls' nominal fits are at 1.03-1.07 F and no refit moved them by more than 0.01 points).
 
 The kept candidate with the best validation fit is the first finding; the other kept candidates are
 then screened on top of it and, where they still explain at least 1 % of the residual, refitted on
@@ -219,6 +224,12 @@ def validation_noise_points(recording, n_est: int, noise: dict) -> float:
     return 100.0 * noise["position_m"] * math.sqrt(y.size) / den if den > 0 else float("inf")
 
 
+#: a nominal validation error at least this many times the noise floor ``F`` is clearly short ...
+CLEARLY_SHORT = 2.0
+#: ... and a refit's at most this many times ``F`` explains the held-out data down to noise
+AT_NOISE = 1.25
+
+
 def passes_test(cost0: float, cost1: float, n: int, k: int, fit0: float, fit1: float, floor_points: float) -> tuple[bool, float, str]:
     """The keep test of the module docstring; returns ``(kept, threshold_points, reason)``."""
     bic_gain = n * math.log(max(cost0, 1e-300) / max(cost1, 1e-300)) - k * math.log(n)
@@ -228,11 +239,18 @@ def passes_test(cost0: float, cost1: float, n: int, k: int, fit0: float, fit1: f
         return False, threshold, "refit failed to give a finite fit"
     if bic_gain <= 0:
         return False, threshold, f"estimation: BIC does not drop (N ln(C0/C1) - k ln N = {bic_gain:.1f})"
-    if fit1 - fit0 <= threshold:
+    to_noise = (err0 >= CLEARLY_SHORT * floor_points and err1 <= AT_NOISE * floor_points
+                and fit1 - fit0 > floor_points)
+    if fit1 - fit0 <= threshold and not to_noise:
         return False, threshold, (f"validation: +{fit1 - fit0:.2f} points, not above the noise threshold "
                                   f"{threshold:.2f}")
     if err1 > 0.9 * err0:
         return False, threshold, "validation: error shrinks by less than 10 %"
+    if fit1 - fit0 <= threshold:
+        return True, floor_points, (
+            f"BIC gain {bic_gain:.0f} on the estimation part; validation +{fit1 - fit0:.2f} points > F = "
+            f"{floor_points:.2f}, its error from {err0 / floor_points:.2f} F to {err1 / floor_points:.2f} F (down to "
+            "the noise floor)")
     return True, threshold, (f"BIC gain {bic_gain:.0f} on the estimation part; validation +{fit1 - fit0:.2f} points "
                              f"> {threshold:.2f}")
 

@@ -372,7 +372,8 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     test = ("keep a candidate when its refit lowers the BIC on the estimation part (N ln(C0/C1) > k ln N, C the "
             "residual sum of squares in sensor-noise units) and raises the validation fit by more than "
             f"max(0.5, F) = {max(0.5, floor):.2f} points, F = {floor:.2f} the fit white sensor noise alone takes "
-            "away, with the validation error at least 10 % smaller")
+            f"away (or by more than F where it takes a validation error of at least {cand.CLEARLY_SHORT:g} F down to "
+            f"at most {cand.AT_NOISE:g} F), with the validation error at least 10 % smaller")
     result = DiagnosisResult(
         recording=name, rig=rig_used.name,
         validation={"t_start_s": float(recording.time_s[nominal.n_estimation]), "t_end_s": float(recording.time_s[-1])},
