@@ -30,6 +30,7 @@ import pytest
 
 HERE = Path(__file__).resolve().parent.parent
 SET = Path(os.environ.get("PNEUSIM_DIAGNOSIS_SET", HERE.parent / "shared" / "practice2"))
+RIG = os.environ.get("PNEUSIM_DIAGNOSIS_RIG")
 
 
 def _load():
@@ -37,11 +38,10 @@ def _load():
     if not answers.is_file():
         pytest.skip(f"no practice set with answers at {SET}")
     files = sorted(SET.glob("*.csv"))
-    rig = os.environ.get("PNEUSIM_DIAGNOSIS_RIG")
-    if rig:   # the recordings' own metadata chooses, not the answers
+    if RIG:   # the recordings' own metadata chooses, not the answers
         from pneusim.recording import read_recording
 
-        files = [f for f in files if read_recording(f).rig == rig]
+        files = [f for f in files if read_recording(f).rig == RIG]
     limit = int(os.environ.get("PNEUSIM_DIAGNOSIS_LIMIT", "0") or 0)
     return files[:limit] if limit else files, json.loads(answers.read_text())["cases"]
 
@@ -87,8 +87,7 @@ def _table(s, load, ratio) -> str:
     def frac(p):
         return f"{p[0]}/{p[1]} ({100 * p[0] / p[1]:.0f} %)" if p[1] else "n/a"
 
-    rig = os.environ.get("PNEUSIM_DIAGNOSIS_RIG")
-    lines = [f"# Diagnosis score on `{SET.name}`" + (f" (recordings of `{rig}` only)" if rig else ""), "",
+    lines = [f"# Diagnosis score on `{SET.name}`" + (f" (recordings of `{RIG}` only)" if RIG else ""), "",
              "| measure | value |", "|---|---|",
              f"| true effect ranked first (one-effect cases) | {frac(s['top1'])} |",
              f"| first finding one of the two (two-effect cases) | {frac(s['two_effect_first'])} |",
@@ -114,8 +113,7 @@ def test_diagnose_practice_set(benchmark):
     from pneusim.diagnosis.batch import diagnose_many
 
     files, cases = _load()
-    rig = os.environ.get("PNEUSIM_DIAGNOSIS_RIG")
-    out = HERE / "results" / (f"diagnosis-{SET.name}" + (f"-{rig}" if rig else ""))
+    out = HERE / "results" / (f"diagnosis-{SET.name}" + (f"-{RIG}" if RIG else ""))
     workers = int(os.environ.get("PNEUSIM_DIAGNOSIS_WORKERS", "1"))
     rows = benchmark.pedantic(lambda: diagnose_many(files, out, workers=workers, report=True, progress=True),
                               rounds=1, iterations=1)

@@ -80,9 +80,8 @@ def _pneusim_fit(benchmark, recording, rig, **options):
 def test_fit_pneusim(benchmark, case):
     rig, truth, recording = case
     result, seconds = _pneusim_fit(benchmark, recording, rig)
-    out = {"seconds": seconds}
-    error = _report("pneusim", out["seconds"], result.estimates, truth, result.fit_percent)
-    benchmark.extra_info.update({"seconds": out["seconds"], "largest_error": error,
+    error = _report("pneusim", seconds, result.estimates, truth, result.fit_percent)
+    benchmark.extra_info.update({"seconds": seconds, "largest_error": error,
                                  "validation_fit_percent": result.fit_percent})
     assert error < 0.05
 

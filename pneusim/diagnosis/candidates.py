@@ -239,14 +239,15 @@ def passes_test(cost0: float, cost1: float, n: int, k: int, fit0: float, fit1: f
         return False, threshold, "refit failed to give a finite fit"
     if bic_gain <= 0:
         return False, threshold, f"estimation: BIC does not drop (N ln(C0/C1) - k ln N = {bic_gain:.1f})"
+    below_threshold = fit1 - fit0 <= threshold
     to_noise = (err0 >= CLEARLY_SHORT * floor_points and err1 <= AT_NOISE * floor_points
                 and fit1 - fit0 > floor_points)
-    if fit1 - fit0 <= threshold and not to_noise:
+    if below_threshold and not to_noise:
         return False, threshold, (f"validation: +{fit1 - fit0:.2f} points, not above the noise threshold "
                                   f"{threshold:.2f}")
     if err1 > 0.9 * err0:
         return False, threshold, "validation: error shrinks by less than 10 %"
-    if fit1 - fit0 <= threshold:
+    if below_threshold:
         return True, floor_points, (
             f"BIC gain {bic_gain:.0f} on the estimation part; validation +{fit1 - fit0:.2f} points > F = "
             f"{floor_points:.2f}, its error from {err0 / floor_points:.2f} F to {err1 / floor_points:.2f} F (down to "

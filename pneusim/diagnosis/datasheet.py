@@ -88,16 +88,24 @@ def _try(recording, rig, lead, c, refits, trial, basis: NominalBaseline, say) ->
                      f"{time.perf_counter() - started:.0f} s)")
     if not better:
         return bool(trial.kept)
-    ok, _, reason = cand.passes_test(basis.cost0, c_cold, basis.n_residuals, c.n_added, basis.fit0,
-                                     cold.fit_percent, basis.floor)
+    ok, _, reason = _take(lead, c, cold, c_cold, refits, trial, basis,
+                          (trial.seconds or 0.0) + time.perf_counter() - started)
     trial.status += f"; test from the data sheet: {reason}"
+    return ok
+
+
+def _take(lead, c, cold, c_cold, refits, trial, basis: NominalBaseline, seconds: float):
+    """Apply the keep test to ``cold``, a fit of ``lead`` from the data sheet with estimation residual
+    ``c_cold``, and make it ``lead``'s refit; returns :func:`.candidates.passes_test`'s answer."""
+    ok, threshold, reason = cand.passes_test(basis.cost0, c_cold, basis.n_residuals, c.n_added, basis.fit0,
+                                             cold.fit_percent, basis.floor)
     trial.kept = ok
     trial.fit_percent, trial.improvement_points = cold.fit_percent, cold.fit_percent - basis.fit0
     trial.estimation_cost_drop = basis.cost0 - c_cold
     trial.parameters, _ = cand.effect_parameters(cold, lead)
-    trial.seconds = (trial.seconds or 0.0) + time.perf_counter() - started
+    trial.seconds = seconds
     refits[lead] = (cold, c)
-    return ok
+    return ok, threshold, reason
 
 
 def untried_families_from_data_sheet(recording, rig, families: list, refits: dict, trials: dict,
@@ -127,12 +135,6 @@ def untried_families_from_data_sheet(recording, rig, families: list, refits: dic
             trial.seconds = time.perf_counter() - started
             continue
         c_cold, _ = cand.estimation_cost(cold, basis.noise)
-        ok, thr, reason = cand.passes_test(basis.cost0, c_cold, basis.n_residuals, c.n_added, basis.fit0,
-                                           cold.fit_percent, basis.floor)
-        trial.refitted, trial.kept = True, ok
+        _, trial.threshold, reason = _take(eff, c, cold, c_cold, refits, trial, basis, time.perf_counter() - started)
+        trial.refitted = True
         trial.status = f"from the data sheet (its family never refitted, the best finding far above noise): {reason}"
-        trial.fit_percent, trial.improvement_points = cold.fit_percent, cold.fit_percent - basis.fit0
-        trial.estimation_cost_drop, trial.threshold = basis.cost0 - c_cold, thr
-        trial.parameters, _ = cand.effect_parameters(cold, eff)
-        trial.seconds = time.perf_counter() - started
-        refits[eff] = (cold, c)

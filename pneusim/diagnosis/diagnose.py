@@ -293,9 +293,9 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     rms_ratio = math.sqrt(cost0 / max(n_res, 1))
     if rms_ratio > MODEL_SHORT and refits:
         # the nominal fit has bent its parameters to make up for the missing physics
-        refit_from_data_sheet(recording, rig_used, refits, trials, kept, candidates,
-                              NominalBaseline(noise, cost0, n_res, fit0, floor, validation_fraction),
-                              lambda message: _progress(progress, f"{name}: {message}"))
+        basis = NominalBaseline(noise, cost0, n_res, fit0, floor, validation_fraction)
+        say = lambda message: _progress(progress, f"{name}: {message}")  # noqa: E731
+        refit_from_data_sheet(recording, rig_used, refits, trials, kept, candidates, basis, say)
         kept = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
         best_cost = min((cand.estimation_cost(refits[k][0], noise)[0] for k in kept), default=math.inf)
         if kept and math.sqrt(best_cost / max(n_res, 1)) > MODEL_SHORT:
@@ -306,10 +306,7 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
                 if _family(k) not in tried and math.isfinite(best_variant[k][0]):
                     tried.add(_family(k))
                     untried.append((k, best_variant[k][1]))
-            untried_families_from_data_sheet(
-                recording, rig_used, untried, refits, trials,
-                NominalBaseline(noise, cost0, n_res, fit0, floor, validation_fraction),
-                lambda message: _progress(progress, f"{name}: {message}"))
+            untried_families_from_data_sheet(recording, rig_used, untried, refits, trials, basis, say)
             kept = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
     if kept:
         first = kept[0]
