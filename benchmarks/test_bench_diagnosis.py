@@ -40,7 +40,11 @@ def _load():
     files = sorted(SET.glob("*.csv"))
     if RIG:   # the recordings' own metadata chooses, not the answers
         from pneusim.recording import read_recording
+        from pneusim.rig import known_rig_names
 
+        if RIG not in known_rig_names():
+            pytest.fail(f"PNEUSIM_DIAGNOSIS_RIG={RIG!r} is not a known rig; expected one of "
+                        f"{', '.join(known_rig_names())}", pytrace=False)
         files = [f for f in files if read_recording(f).rig == RIG]
     limit = int(os.environ.get("PNEUSIM_DIAGNOSIS_LIMIT", "0") or 0)
     return files[:limit] if limit else files, json.loads(answers.read_text())["cases"]

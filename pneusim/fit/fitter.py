@@ -274,11 +274,19 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
                 if first in pre_pb.starts and first < pre_pb.starts[-1]:
                     x_init[j] = prefit_states[list(pre_pb.starts).index(first)]
             x_init[0] = better_first_state(pb, theta0, [x_init[0], fresh_first])
-            v_ls, rms_ls, info = full_fit(pb, pb.join(theta0, x_init), lo, hi, rms_pre)
+            def finish(v):
+                done = polish(pb, v, lo, hi, max_iter, rtol, penalty=1e4)
+                return done, _normalised_rms(pb, done)
+
+            v_ls, rms_ls, info = full_fit(pb, pb.join(theta0, x_init), lo, hi, rms_pre, finish=finish)
             say(f"start {k + 1}, fit ({n_est} samples): trust region {info['status']} after {info['evaluations']} "
                 f"evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_ls:.3g}" + _routes_text(info))
-            res = polish(pb, v_ls, lo, hi, max_iter, rtol, penalty=1e4)
-            rms = _normalised_rms(pb, res)
+            # IPOPT on the kept route's point, unless the direct route's was already finished and kept; where
+            # the continuation was kept over a finished direct route, the better of the two finished fits
+            finished = info.pop("finished", None)
+            res, rms = finished if finished is not None and info["route"] == "direct" else finish(v_ls)
+            if finished is not None and info["route"] != "direct" and finished[0].objective < res.objective:
+                res, rms = finished
             attempts[-1].update(fit_rms_normalised=rms, fit_routes=info["routes"], ipopt_status=res.status,
                                 ipopt_iterations=res.iterations)
             fits.append((res.objective if np.isfinite(res.objective) else np.inf, k, res))
@@ -356,9 +364,11 @@ def _normalised_rms(pb: ShootingProblem, res) -> float:
 
 def _routes_text(info: dict) -> str:
     """The routes a :func:`.stages.two_routes` stage tried and the one it kept, for the stage line."""
-    if len(info["routes"]) < 2:
+    if len(info["routes"]) < 2 and "finished_rms_normalised" not in info["routes"][0]:
         return ""
-    routes = ", ".join(f"{r['route']} {r['rms_normalised']:.3g}" for r in info["routes"])
+    routes = ", ".join(f"{r['route']} {r['rms_normalised']:.3g}"
+                       + (f" (IPOPT from it {r['finished_rms_normalised']:.3g})" if "finished_rms_normalised" in r else "")
+                       for r in info["routes"])
     return f" (routes: {routes}; kept {info['route']})"
 
 

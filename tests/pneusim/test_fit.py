@@ -144,3 +144,35 @@ def test_a_constrained_run_given_up_falls_back_to_the_penalty_and_still_recovers
     assert result.converged_to_noise
     for key, p in result.parameters.items():
         assert abs(p.estimate - truth[key]) < 3 * p.std + 0.01 * abs(truth[key]), (key, p.estimate, truth[key])
+
+
+def test_second_route_only_when_ipopt_from_the_direct_route_stays_above_noise(monkeypatch):
+    """The full fit's continuation route runs only when IPOPT from the direct route's point does not
+    reach the noise level; when it runs and is not clearly better, the finished direct route is kept."""
+    import pneusim.fit.stages as stages
+
+    calls = []
+
+    def fake_trust_region(pb, v0, lower, upper, defect_weight=1000.0, **options):
+        calls.append(("trust region", defect_weight))
+        return np.array([1.0]), 1.78, {"status": "step tolerance", "evaluations": 17, "jacobians": 17, "seconds": 1.0}
+
+    def fake_continuation(pb, v0, lower, upper, weights=(), **options):
+        calls.append(("continuation", tuple(weights)))
+        return np.array([2.0]), 1.73, {"status": "step tolerance", "evaluations": 45, "jacobians": 45,
+                                       "seconds": 3.0}
+
+    monkeypatch.setattr(stages, "trust_region", fake_trust_region)
+    monkeypatch.setattr(stages, "continuation", fake_continuation)
+    for finished_rms, continued in ((0.999, False), (1.6, True)):
+        calls.clear()
+        v, rms, info = stages.full_fit(None, np.zeros(1), None, None, prefit_rms=0.99,
+                                       finish=lambda v: ("ipopt result", finished_rms))
+        assert [c[0] for c in calls] == ["trust region"] + (["continuation"] if continued else [])
+        assert info["route"] == "direct" and info["finished"] == ("ipopt result", finished_rms)
+        assert info["routes"][0]["finished_rms_normalised"] == finished_rms
+        assert info["evaluations"] == 17 + (45 if continued else 0)
+    # without a finish (the pre-fit) the continuation follows a direct route above noise, as before
+    calls.clear()
+    stages.full_fit(None, np.zeros(1), None, None, prefit_rms=0.99)
+    assert [c[0] for c in calls] == ["trust region", "continuation"]

@@ -8,15 +8,14 @@
 * Seeded recordings of the robustness set's hardest kinds (:func:`pneusim.fit.robustness.hardest_cases`),
   fitted with the friction smoothing velocity freed beside the seven defaults (see
   :mod:`pneusim.fit.robustness` for why): the fit reaches the noise level and the truth lies within
-  3 sigma for at least six of the seven default parameters.  Opt-in (``PNEUSIM_FIT_ROBUST=1``):
-  7 of the 8 pass (85 s with two workers); ``s5000`` still ends above noise.
+  3 sigma for at least six of the seven default parameters.  7 of the 8 pass (85 s with two
+  workers); ``s5000`` still ends above noise and is marked as a strict expected failure.
 * Two cases of the robustness set run by default: a restart when the first start ends above noise
   (``s1041``), and a recording that starts mid stick-slip with end stops (``s5006``).
 * The robustness score counts a parameter whose standard error is not finite as outside 3 sigma.
 """
 
 import json
-import os
 
 import numpy as np
 import pytest
@@ -111,11 +110,22 @@ def test_cli_exits_3_far_above_noise(deadband_case, tmp_path, capsys):
     assert "exit status 3" in err and "Traceback" not in err
 
 
-@pytest.mark.skipif(not os.environ.get("PNEUSIM_FIT_ROBUST"),
-                    reason="open (issue 9): 1 of these 8 fits stops above noise (paper 2 closed-loop steps "
-                           "without pressures, s5000, at 3.6 times noise after two starts), and the 8 take about 90 s with two "
-                           "workers; set PNEUSIM_FIT_ROBUST=1 to run")
-@pytest.mark.parametrize("spec", hardest_cases(8), ids=lambda s: s.name)
+#: the one hardest case still open (issue 9): its first pre-fit ends at 3.46 times noise in a basin of
+#: another friction shape (static friction 954 N against 47 N true, Stribeck velocity 1.9 mm/s against
+#: 16, smoothing 17 mm/s against 0.63), its other starts at 5.4 and 6.2; from the truth the fit ends at
+#: 1.03.  Strict: the day it passes, this mark must go.
+OPEN_HARDEST = {"paper2-enfield-steps-closed-x-s5000": "open (issue 9): ends at 3.6 times noise in a wrong "
+                "friction basin; from the truth 1.03"}
+
+
+def _hardest_params():
+    return [pytest.param(spec, id=spec.name, marks=[pytest.mark.minutes]
+                         + ([pytest.mark.xfail(reason=OPEN_HARDEST[spec.name], strict=True)]
+                            if spec.name in OPEN_HARDEST else []))
+            for spec in hardest_cases(8)]
+
+
+@pytest.mark.parametrize("spec", _hardest_params())
 def test_hardest_kinds_reach_noise_with_truth_inside_three_sigma(spec):
     rig, truth, rec = make_case(spec)
     result = fit_recording(rec, rig, free=fit_free(True), quiet=True)
