@@ -110,20 +110,21 @@ def _take(lead, c, cold, c_cold, refits, trial, basis: NominalBaseline, seconds:
 
 def untried_families_from_data_sheet(recording, rig, families: list, refits: dict, trials: dict,
                                      basis: NominalBaseline, say) -> None:
-    """Fit members of each family never refitted from the data sheet (``families``: one list of
-    ``(effect, candidate)`` per family, its members in screening order); ``refits`` and ``trials`` are
-    updated in place and the keep test applied to each.  The caller passes the leader alone beside a
-    finding, every member when nothing was kept: the first member to pass need not be the best (a
-    valve offset may explain part of a dead band), and the kept refits are ranked by validation fit.
+    """Fit the given candidates from the data sheet (``families``: lists of ``(effect, candidate)``,
+    screening order); ``refits`` and ``trials`` are updated in place and the keep test applied to
+    each.  The caller passes the leader of each family never refitted beside a finding, and every
+    candidate never refitted when nothing was kept; the kept refits are then ranked by validation fit
+    (the first to pass need not be the best: a valve offset may explain part of a dead band).
 
     For a finding that leaves the model far above noise: it has not explained the recording, and an
     effect the screening around a bent nominal fit scored below zero was never refitted
     (``practice2_01``, a 0.037 V valve offset on an open-loop recording: the nominal fit ended at
     -290 % validation, the offset screened at -277 while heat transfer, friction asymmetry, a leak
     and spool dynamics were refitted, and the leak was kept at -214 % validation, 14 times above
-    noise).  With nothing kept, the screening may not have moved any member of the right family
+    noise).  With nothing kept, the screening may not have moved the right candidate at all
     (``practice2_03``: a dead band screened at 0.02 V against 0.173 V true, behind a valve offset that
-    stayed at 0)."""
+    stayed at 0; ``practice2_15``: a -120 N load never refitted, its family's friction asymmetry
+    refitted and not kept)."""
     for members in families:
         for eff, c in members:
             _cold_family_member(recording, rig, eff, c, refits, trials[eff], basis, say)
