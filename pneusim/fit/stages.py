@@ -57,10 +57,14 @@ def trust_region(pb: ShootingProblem, v0, lower, upper, max_evaluations: int = 8
 
     # residuals with sensitivities: the trust region accepts most trial points (17 of 20 on a stuck
     # closed-loop pre-fit), so integrating once with them beats a state-only pass plus a second one
+    # a trial point the model cannot be integrated at has no residuals: non-finite ones make SciPy's trf
+    # reject the step and shrink the region.  (A finite stand-in of 1e3 per residual would be accepted as
+    # an improvement from any start that costs more -- a delay screened from the nominal fit's states on
+    # paper 1 starts at 1.1e9, the stand-in there costs 1.35e9 -- and there is no Jacobian there.)
     def fun(v):
         e = pb.evaluate(v, derivatives=True)
         if not e["ok"]:
-            return np.full(n_r + pb.n_constraints, 1e3)
+            return np.full(n_r + pb.n_constraints, np.inf)
         return np.concatenate([e["r"], defect_weight * e["g"]])
 
     def jac(v):
@@ -77,8 +81,14 @@ def trust_region(pb: ShootingProblem, v0, lower, upper, max_evaluations: int = 8
         inner_lower = np.where(np.isfinite(lower), lower + 1e-12 * np.abs(lower), lower)
         inner_upper = np.where(np.isfinite(upper), upper - 1e-12 * np.abs(upper), upper)
     v0 = np.clip(v0, inner_lower, inner_upper)
-    fit = least_squares(fun, v0, jac=jac, bounds=(lower, upper), method="trf", x_scale=1.0,
-                        tr_solver="lsmr", max_nfev=max_evaluations, xtol=tolerance, ftol=tolerance)
+    try:
+        fit = least_squares(fun, v0, jac=jac, bounds=(lower, upper), method="trf", x_scale=1.0,
+                            tr_solver="lsmr", max_nfev=max_evaluations, xtol=tolerance, ftol=tolerance)
+    except ValueError as exc:
+        if "not finite in the initial point" not in str(exc):
+            raise
+        raise FitError("the model could not be integrated at the trust region's start point (its parameters "
+                       "and segment start states)") from None
     r = fun(fit.x)[:n_r]
     rms = float(np.sqrt(np.mean(r ** 2))) if np.all(np.isfinite(r)) else float("inf")
     status = {-1: "improper input", 0: "evaluation limit", 1: "gradient tolerance", 2: "cost tolerance",

@@ -55,8 +55,11 @@ def command_schedule(time_s: np.ndarray, command_V: np.ndarray, start: int, stop
 
     t0 = time_s[start]
     arrivals = time_s + delay_s
-    switches = arrivals[(arrivals > t0) & (arrivals < time_s[stop])]
     eps = 1e-9 * (time_s[1] - time_s[0])
+    # an arrival within rounding of the interval's start is the start itself: a delay of a whole number
+    # of samples puts time_s[k] + delay_s a hair after time_s[k + m] (0.342 + 0.008 > 0.35), and an
+    # interval that short makes CVODES refuse to start (flag -27, "tout too close to t0")
+    switches = arrivals[(arrivals > t0 + eps) & (arrivals < time_s[stop])]
 
     def seen(t):
         # the latest command whose delayed arrival is at or before t (within rounding)

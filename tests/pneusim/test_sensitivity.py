@@ -58,3 +58,21 @@ def test_command_schedule_delays_the_commands_the_valve_sees():
     assert list(out) == [-1, 1, -1, 2, -1, 3]
     stops, seen, out = command_schedule(t, u, 0, 5)
     assert np.allclose(stops, t[1:]) and np.allclose(seen, u[:-1]) and list(out) == [1, 2, 3, 4, 5]
+
+
+def test_a_delay_of_whole_samples_gives_no_interval_of_rounding_length():
+    """A delay of a whole number of samples lands each command on a later sample instant, up to rounding
+    (0.342 + 0.008 > 0.35 in floating point): no integration interval may be that short (CVODES refuses
+    to start one), every sample instant is an output, and the command seen on each sample interval is
+    the one sent ``m`` samples earlier."""
+    t = np.round(np.arange(1000) * 0.001, 6)           # as read from a CSV file with 1 ms sampling
+    u = np.sin(np.arange(1000) * 0.37) + 5.0
+    m = 8
+    assert np.any(t[:-m] + m * 0.001 > t[m:])          # the rounding the test is about does occur
+    for start in range(0, 990, 7):
+        stops, seen, out = command_schedule(t, u, start, start + 10, delay_s=m * 0.001)
+        assert np.diff(np.concatenate([[t[start]], stops])).min() > 1e-6
+        assert list(out) == list(range(1, 11))
+        sent = np.arange(start, start + 10) - m
+        expected = np.where(sent >= 0, u[np.maximum(sent, 0)], u[0])
+        assert np.allclose(seen, expected)
