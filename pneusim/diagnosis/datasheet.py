@@ -133,8 +133,8 @@ def untried_families_from_data_sheet(recording, rig, families: list, refits: dic
 def _cold_family_member(recording, rig, eff, c, refits, trial, basis: NominalBaseline, say) -> None:
     """Fit ``eff`` (candidate ``c``) from the data sheet, make it the refit and apply the keep test.
     A failed fit is reported with the candidate."""
-    say(f"refit with {eff} from the data sheet (the best finding so far leaves the model more than "
-        f"{MODEL_SHORT:g} times above noise, or there is none, and its family was never refitted)")
+    say(f"refit with {eff} from the data sheet (no finding so far brings the model within {MODEL_SHORT:g} times "
+        f"the noise, and {eff} was never refitted)")
     started = time.perf_counter()
     try:
         cold = fit_recording(recording, rig, [c.effect], validation_fraction=basis.validation_fraction,
@@ -148,4 +148,4 @@ def _cold_family_member(recording, rig, eff, c, refits, trial, basis: NominalBas
     c_cold, _ = cand.estimation_cost(cold, basis.noise)
     _, trial.threshold, reason = _take(eff, c, cold, c_cold, refits, trial, basis, time.perf_counter() - started)
     trial.refitted = True
-    trial.status = f"from the data sheet (its family never refitted, no finding near noise): {reason}"
+    trial.status = f"from the data sheet (never refitted, no finding near noise): {reason}"

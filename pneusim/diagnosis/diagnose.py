@@ -31,6 +31,7 @@ from ..fit import fit_recording
 from ..fit.stages import MODEL_SHORT
 from ..fit.threads import one_blas_thread
 from .datasheet import NominalBaseline, refit_from_data_sheet, untried_families_from_data_sheet
+from .delay import refine_from_screening, scan_with_refits
 from ..model import make_effect
 from ..recording import Recording, read_recording
 from ..rig import Rig, load_rig
@@ -200,7 +201,7 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
         if c.name not in best_variant or score > best_variant[c.name][0]:
             best_variant[c.name] = (score, c, s)
     if delay_scan and "transport_delay" in best_variant:
-        d_best = _refine_delay(delay_scan, recording.sample_time_s)
+        d_best = refine_from_screening(delay_scan, recording.sample_time_s)
         score, c, s = best_variant["transport_delay"]
         c = cand.Candidate("transport_delay", f"transport delay {d_best * 1e3:.3g} ms",
                            make_effect("transport_delay", delay_s=d_best), [])
@@ -241,7 +242,27 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
             trial.refitted, trial.status, trial.seconds = True, f"refit failed: {exc}", time.perf_counter() - t0
             return
         cost1, _ = cand.estimation_cost(fit1, noise)
+        neutral = cand.neutral_effect(c)
+        retried = ""
+        if cost1 > cost0 and neutral is not None:
+            # the refit nests the nominal model and ended above it: its screened start led it into a worse
+            # basin; once more from the effect's neutral value with the nominal parameters (the nominal
+            # optimum is then the start, and the refit can only go down from it)
+            _progress(progress, f"{name}: refit with {c.label} ended above the nominal residual "
+                                f"({cost1:.0f} > {cost0:.0f}); again from {eff} at its neutral value")
+            try:
+                again = cand.refit(recording, rig_used, [neutral], nominal)
+                cost_again, _ = cand.estimation_cost(again, noise)
+            except Exception as exc:  # noqa: BLE001 - the first refit stands
+                if not cand.is_solver_failure(exc):
+                    raise
+                again, cost_again = None, math.inf
+            retried = (f"; refitted from its screened start to {cost1:.0f} > nominal {cost0:.0f}, again from the "
+                       f"neutral value to {cost_again:.0f}")
+            if cost_again < cost1:
+                fit1, cost1 = again, cost_again
         kept, thr, reason = cand.passes_test(cost0, cost1, n_res, c.n_added, fit0, fit1.fit_percent, floor)
+        reason += retried
         values, _ = cand.effect_parameters(fit1, eff)
         trial.refitted, trial.kept, trial.status = True, kept, reason
         trial.fit_percent, trial.improvement_points = fit1.fit_percent, fit1.fit_percent - fit0
@@ -291,12 +312,18 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     findings, final = [], nominal
     kept = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
     rms_ratio = math.sqrt(cost0 / max(n_res, 1))
+    say = lambda message: _progress(progress, f"{name}: {message}")  # noqa: E731
+    delay_scanned = False
+    basis = NominalBaseline(noise, cost0, n_res, fit0, floor, validation_fraction)
     if rms_ratio > MODEL_SHORT and refits:
         # the nominal fit has bent its parameters to make up for the missing physics
-        basis = NominalBaseline(noise, cost0, n_res, fit0, floor, validation_fraction)
-        say = lambda message: _progress(progress, f"{name}: {message}")  # noqa: E731
         refit_from_data_sheet(recording, rig_used, refits, trials, kept, candidates, basis, say)
         kept = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
+        if "transport_delay" in kept:
+            # before asking whether the finding explains the recording: a better delay may explain it
+            _scan_kept_delay(recording, rig_used, refits, trials, noise, basis, say)
+            delay_scanned = True
+            kept = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
         best_cost = min((cand.estimation_cost(refits[k][0], noise)[0] for k in kept), default=math.inf)
         if math.sqrt(best_cost / max(n_res, 1)) > MODEL_SHORT:
             # the finding has not explained the recording: the leader of each family never refitted is
@@ -318,6 +345,9 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
                             if k not in refits and math.isfinite(best_variant[k][0])]
             untried_families_from_data_sheet(recording, rig_used, families, refits, trials, basis, say)
             kept = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
+    if "transport_delay" in kept and not delay_scanned:
+        _scan_kept_delay(recording, rig_used, refits, trials, noise, basis, say)
+        kept = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
     if kept:
         first = kept[0]
         final = refits[first][0]
@@ -396,6 +426,32 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     return result
 
 
+def _scan_kept_delay(recording, rig, refits: dict, trials: dict, noise: dict, basis: NominalBaseline, say) -> None:
+    """Estimate a kept transport delay by the refit scan of :func:`.delay.scan_with_refits` (the kept
+    one came from the screening's scan); the best delay replaces it when it still passes the keep
+    test.  ``refits`` and ``trials`` are updated in place."""
+    fit_d, c_d = refits["transport_delay"]
+    best, scan = scan_with_refits(recording, rig, fit_d, noise, say)
+    trial = trials["transport_delay"]
+    text = ", ".join(f"{d * 1e3:.4g} ms {c:.0f}" for d, c, _ in scan)
+    trial.seconds = (trial.seconds or 0.0) + sum(t for _, _, t in scan)
+    trial.status += f"; delay scan with refits (estimation residual by delay: {text}): "
+    if best is fit_d:
+        trial.status += "the kept delay is best"
+        return
+    cost_b, _ = cand.estimation_cost(best, noise)
+    ok, threshold, reason = cand.passes_test(basis.cost0, cost_b, basis.n_residuals, c_d.n_added, basis.fit0,
+                                             best.fit_percent, basis.floor)
+    if not ok:
+        trial.status += f"the best delay fails the test ({reason}); the kept delay stays"
+        return
+    trial.status += reason
+    trial.fit_percent, trial.improvement_points = best.fit_percent, best.fit_percent - basis.fit0
+    trial.estimation_cost_drop, trial.threshold = basis.cost0 - cost_b, threshold
+    trial.parameters, _ = cand.effect_parameters(best, "transport_delay")
+    refits["transport_delay"] = (best, c_d)
+
+
 def _family(effect: str) -> tuple:
     """The look-alike family of ``effect`` (itself alone when it has none)."""
     return next((family for family in FAMILIES if effect in family), (effect,))
@@ -427,21 +483,3 @@ def _finding(eff: str, fit, fit_before: float, trial: CandidateTrial) -> Finding
     return Finding(effect=eff, evidence=trial.evidence + f"; refit: {trial.status}", parameters=_derived(eff, values, fit),
                    fit_percent=fit.fit_percent, improvement_points=fit.fit_percent - fit_before,
                    standard_errors=errors)
-
-
-def _refine_delay(scan, sample_time_s: float) -> float:
-    """The delay of largest screening gain, refined by a parabola through it and its neighbours in log(delay)."""
-    scan = sorted(scan)
-    d = np.array([s[0] for s in scan])
-    g = np.array([s[1] for s in scan])
-    if not np.isfinite(g).any():
-        return float(d[0])
-    g = np.where(np.isfinite(g), g, -np.inf)
-    k = int(np.argmax(g))
-    best = float(d[k])
-    if 0 < k < d.size - 1 and np.all(np.isfinite(g[k - 1:k + 2])):
-        x = np.log(d[k - 1:k + 2])
-        a, b, _ = np.polyfit(x, g[k - 1:k + 2], 2)
-        if a < 0:
-            best = float(np.exp(np.clip(-b / (2 * a), x[0], x[-1])))
-    return float(max(sample_time_s, round(best / sample_time_s * 10) / 10 * sample_time_s))
