@@ -5,8 +5,8 @@ estimates, standard errors, correlations, identifiability warnings and a
 validation fit on data the optimiser never saw.
 """
 
-from .fitter import fit_recording, noise_std_estimate
+from .fitter import PrefitResult, fit_recording, noise_std_estimate, prefit_recording
 from .parameters import DEFAULT_FREE, EFFECT_FREE
 from .result import FitResult, ParameterEstimate
 
-__all__ = ["fit_recording", "noise_std_estimate", "FitResult", "ParameterEstimate", "DEFAULT_FREE", "EFFECT_FREE"]
+__all__ = ["fit_recording", "prefit_recording", "PrefitResult", "noise_std_estimate", "FitResult", "ParameterEstimate", "DEFAULT_FREE", "EFFECT_FREE"]

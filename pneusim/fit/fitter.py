@@ -38,6 +38,7 @@ from __future__ import annotations
 import logging
 import sys
 import time
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -52,11 +53,11 @@ from .parameters import DEFAULT_FREE, EFFECT_FREE, SEARCHED, check_free, paramet
 from .initial import better_first_state, initial_starts
 from .result import ABOVE_NOISE_WARNING, FitResult, ParameterEstimate
 from .shooting import FitData, ShootingProblem, position_reading
-from .stages import MODEL_SHORT, full_fit, polish, prefit, trust_region, well_above
+from .stages import MODEL_SHORT, PENALTY_WEIGHT, full_fit, polish, prefit, trust_region, well_above
 from .threads import one_blas_thread
 from .uncertainty import covariance
 
-__all__ = ["fit_recording", "noise_std_estimate"]
+__all__ = ["fit_recording", "prefit_recording", "PrefitResult", "noise_std_estimate"]
 
 _LOG = logging.getLogger("pneusim.fit")
 
@@ -162,57 +163,17 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
     """
     started = time.perf_counter()
     say = _Progress(quiet and not verbose, started)
-    rig = _resolve_rig(recording, rig)
-    model = ActuatorModel(effects)
-    delay_s = model.command_delay_s()
-    free = list(free) if free else _default_free(model)
-    check_free(free, model.param_names)
-    searched = [name for name in free if name in SEARCHED]
-    if searched:
-        raise FitError(f"--free {searched[0]}: a transport delay moves the command switch times and has no "
-                       "gradient; fix it with --effect transport_delay:delay_s=VALUE and compare the fits over a "
-                       "few fixed delays")
-    if validation_fraction is None:
+    if validation_fraction is None and warm_start is not None:
         # the warm fit's split: round(n * (n_est / n)) gives back n_est exactly
-        validation_fraction = (1.0 - warm_start.n_estimation / recording.n_samples if warm_start is not None
-                               else DEFAULT_VALIDATION_FRACTION)
-    if not 0.0 < validation_fraction <= 0.9:
-        raise FitError(f"validation_fraction must be in (0, 0.9], got {validation_fraction}")
-    p_nominal = model.param_vector(rig)
-    p_start = p_nominal.copy()
-    if warm_start is not None:
-        p_start = _warm_parameters(warm_start, model, p_start)
-    for name, value in (start_values or {}).items():
-        if name not in model.param_names:
-            raise FitError(f"start_values: unknown parameter {name!r}; the model has: {', '.join(model.param_names)}")
-        p_start[model.param_names.index(name)] = float(value)
-    index = [model.param_names.index(name) for name in free]
-    scales = np.array([parameter_scale(name, p_nominal[i]) for name, i in zip(free, index)])
-    bounds = np.array([parameter_bounds(name, p_nominal[i]) for name, i in zip(free, index)])
-    lower, upper = bounds[:, 0] / scales, bounds[:, 1] / scales
-    theta_start = np.clip(p_start[index] / scales, lower, upper)
-
-    signals, sigma = _signals(recording, rig, model)
-    n = recording.n_samples
-    n_est = int(round(n * (1.0 - validation_fraction)))
-    if n_est < 100 or n - n_est < 20:
-        raise FitError(f"{_name(recording)}: {n} samples are too few to fit on {1 - validation_fraction:.0%} and "
-                       "validate on the rest (at least 100 estimation and 20 validation samples)")
-    _check_excitation(recording, rig, n_est, sigma["position_m"])
-    if warm_start is not None:
-        _check_warm_start(warm_start, recording, n_est)
-    seg = max(10, int(segment_samples))
-
-    def window(stop):
-        return FitData(recording.time_s[:stop], recording.valve_cmd_V[:stop], float(recording.valve_cmd_V[0]),
-                       {k: (v[:stop], sigma[k]) for k, v in signals.items()})
+        validation_fraction = 1.0 - warm_start.n_estimation / recording.n_samples
+    setup = _Setup(recording, rig, effects, free, validation_fraction, warm_start, start_values, segment_samples)
+    rig, model, free, delay_s = setup.rig, setup.model, setup.free, setup.delay_s
+    p_start, index, scales, bounds = setup.p_start, setup.index, setup.scales, setup.bounds
+    lower, upper, theta_start, n_est, seg = setup.lower, setup.upper, setup.theta_start, setup.n_est, setup.seg
+    sigma = setup.sigma
 
     def problem(stop):
-        pb = ShootingProblem(model, p_start, free, scales, window(stop), rig.stroke_m, seg, delay_s, rtol, threads)
-        x_lo, x_hi = pb.state_bounds()
-        lo = np.concatenate([lower, np.tile(x_lo / pb.x_scale, pb.n_segments)])
-        hi = np.concatenate([upper, np.tile(x_hi / pb.x_scale, pb.n_segments)])
-        return pb, lo, hi
+        return setup.problem(stop, rtol, threads)
 
     pb, lo, hi = problem(n_est)
     attempts, fits = [], []
@@ -221,11 +182,11 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         x_init = warm_states(warm_start, pb, p_start, recording)
         # near the optimum already: the trust region only has to bring the new effect in; it stops at a
         # relative cost change of 1e-3 (not 1e-4) and IPOPT finishes the exact problem
-        v_ls, rms_ls, info = trust_region(pb, pb.join(theta_start, x_init), lo, hi, defect_weight=1e4,
+        v_ls, rms_ls, info = trust_region(pb, pb.join(theta_start, x_init), lo, hi, defect_weight=PENALTY_WEIGHT,
                                           tolerance=1e-3)
         say(f"warm start: trust region {info['status']} after {info['evaluations']} evaluations "
             f"({info['seconds']:.1f} s), normalised rms residual {rms_ls:.3g}")
-        res = polish(pb, v_ls, lo, hi, max_iter, rtol, penalty=1e4)
+        res = polish(pb, v_ls, lo, hi, max_iter, rtol, penalty=PENALTY_WEIGHT)
         rms = _normalised_rms(pb, res)
         say(f"warm start: IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s), "
             f"normalised rms residual {rms:.3g}")
@@ -234,7 +195,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
             # load refitted from a nominal fit at 55 times noise: 34.7 -> 19.7 in 40 iterations, validation
             # 90 %): one more round from there, kept when it lowers the residual; not where IPOPT has
             # stalled (a wrong candidate creeping along costs a whole round for nothing)
-            more = polish(pb, res.v, lo, hi, max_iter, rtol, penalty=1e4)
+            more = polish(pb, res.v, lo, hi, max_iter, rtol, penalty=PENALTY_WEIGHT)
             if np.isfinite(more.objective) and more.objective < res.objective:
                 more.iterations += res.iterations
                 more.seconds += res.seconds
@@ -275,7 +236,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
                     x_init[j] = prefit_states[list(pre_pb.starts).index(first)]
             x_init[0] = better_first_state(pb, theta0, [x_init[0], fresh_first])
             def finish(v):
-                done = polish(pb, v, lo, hi, max_iter, rtol, penalty=1e4)
+                done = polish(pb, v, lo, hi, max_iter, rtol, penalty=PENALTY_WEIGHT)
                 return done, _normalised_rms(pb, done)
 
             v_ls, rms_ls, info = full_fit(pb, pb.join(theta0, x_init), lo, hi, rms_pre, finish=finish)
@@ -315,6 +276,10 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
     theta, _ = pb.split(res.v)
     estimate = pb.params_of(theta)
     uncertainty = covariance(pb, res.v)
+    # the continuity defects left open at the optimum (state-scaled): a fit that ended in the penalty form
+    # bought part of its residual with them, which a comparison of residuals alone would reward
+    defects = pb.evaluate(res.v, derivatives=False)["g"]
+    defect_sum_squares = float(np.dot(defects, defects)) if np.all(np.isfinite(defects)) else float("inf")
     pb.close()
     say("uncertainty: Gauss-Newton covariance done")
     x_boundary = uncertainty["states"][n_est - 1].copy()
@@ -334,7 +299,8 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         validation=validation, solver={"status": res.status, "ipopt_success": res.success,
                                        "iterations": res.iterations,
                                        "seconds": time.perf_counter() - started, "ipopt_seconds": res.seconds,
-                                       "max_defect": res.max_defect, "prefit_attempts": attempts,
+                                       "max_defect": res.max_defect, "defect_sum_squares": defect_sum_squares,
+                                       "prefit_attempts": attempts,
                                        "formulation": res.formulation, "warm_start": warm_start is not None,
                                        "segments": int(pb.n_segments), "segment_samples": seg},
         estimation_states=uncertainty["states"])
@@ -342,6 +308,129 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         f"residual {result.normalised_residual:.3g} (noise level 1)"
         + ("" if result.converged_to_noise else " -- ABOVE NOISE, see the warnings"))
     return result
+
+
+class _Setup:
+    """What every fit of a recording needs before the optimiser runs: the checks, the model, the free
+    parameters with their scales and bounds, the starting values, the measured signals and their
+    noise, and the estimation part; :meth:`problem` builds the shooting problem of a window."""
+
+    def __init__(self, recording: Recording, rig, effects, free, validation_fraction, warm_start, start_values,
+                 segment_samples):
+        self.recording = recording
+        self.rig = rig = _resolve_rig(recording, rig)
+        self.model = model = ActuatorModel(effects)
+        self.delay_s = model.command_delay_s()
+        self.free = free = list(free) if free else _default_free(model)
+        check_free(free, model.param_names)
+        searched = [name for name in free if name in SEARCHED]
+        if searched:
+            raise FitError(f"--free {searched[0]}: a transport delay moves the command switch times and has no "
+                           "gradient; fix it with --effect transport_delay:delay_s=VALUE and compare the fits over a "
+                           "few fixed delays")
+        if validation_fraction is None:
+            validation_fraction = DEFAULT_VALIDATION_FRACTION
+        if not 0.0 < validation_fraction <= 0.9:
+            raise FitError(f"validation_fraction must be in (0, 0.9], got {validation_fraction}")
+        p_nominal = model.param_vector(rig)
+        p_start = p_nominal.copy()
+        if warm_start is not None:
+            p_start = _warm_parameters(warm_start, model, p_start)
+        for name, value in (start_values or {}).items():
+            if name not in model.param_names:
+                raise FitError(f"start_values: unknown parameter {name!r}; the model has: "
+                               f"{', '.join(model.param_names)}")
+            p_start[model.param_names.index(name)] = float(value)
+        self.p_start = p_start
+        self.index = index = [model.param_names.index(name) for name in free]
+        self.scales = np.array([parameter_scale(name, p_nominal[i]) for name, i in zip(free, index)])
+        self.bounds = np.array([parameter_bounds(name, p_nominal[i]) for name, i in zip(free, index)])
+        self.lower, self.upper = self.bounds[:, 0] / self.scales, self.bounds[:, 1] / self.scales
+        self.theta_start = np.clip(p_start[index] / self.scales, self.lower, self.upper)
+        self.signals, self.sigma = _signals(recording, rig, model)
+        n = recording.n_samples
+        self.n_est = n_est = int(round(n * (1.0 - validation_fraction)))
+        if n_est < 100 or n - n_est < 20:
+            raise FitError(f"{_name(recording)}: {n} samples are too few to fit on {1 - validation_fraction:.0%} and "
+                           "validate on the rest (at least 100 estimation and 20 validation samples)")
+        _check_excitation(recording, rig, n_est, self.sigma["position_m"])
+        if warm_start is not None:
+            _check_warm_start(warm_start, recording, n_est)
+        self.seg = max(10, int(segment_samples))
+
+    def window(self, stop: int) -> FitData:
+        rec = self.recording
+        return FitData(rec.time_s[:stop], rec.valve_cmd_V[:stop], float(rec.valve_cmd_V[0]),
+                       {k: (v[:stop], self.sigma[k]) for k, v in self.signals.items()})
+
+    def problem(self, stop: int, rtol: float, threads: int):
+        """``(problem, lower, upper)``: the shooting problem of the first ``stop`` samples and the bounds of
+        its decision variables."""
+        pb = ShootingProblem(self.model, self.p_start, self.free, self.scales, self.window(stop), self.rig.stroke_m,
+                             self.seg, self.delay_s, rtol, threads)
+        x_lo, x_hi = pb.state_bounds()
+        lo = np.concatenate([self.lower, np.tile(x_lo / pb.x_scale, pb.n_segments)])
+        hi = np.concatenate([self.upper, np.tile(x_hi / pb.x_scale, pb.n_segments)])
+        return pb, lo, hi
+
+
+@dataclass
+class PrefitResult:
+    """The pre-fit alone (:func:`prefit_recording`): how far a model gets on a short window.
+
+    Attributes
+    ----------
+    cost : float
+        Residual sum of squares on the window in sensor-noise units (continuity defects not included).
+    n_residuals : int
+    normalised_residual : float
+        ``sqrt(cost / n_residuals)`` (1 is the noise level).
+    estimates : dict
+        ``{parameter name: value}`` of the free parameters at the end (SI units).
+    samples : int
+        Length of the window, samples.
+    seconds : float
+    """
+
+    cost: float
+    n_residuals: int
+    normalised_residual: float
+    estimates: dict
+    samples: int
+    seconds: float
+
+
+@one_blas_thread
+def prefit_recording(recording: Recording, rig: Rig | str | None = None, effects: Sequence[Effect] = (),
+                     free: Sequence[str] | None = None, *, samples: int = 2000, start_values: dict | None = None,
+                     validation_fraction: float | None = None, segment_samples: int = 50, rtol: float = 1e-6,
+                     threads: int = 2, second_route: bool | None = None, max_evaluations: int = 80) -> PrefitResult:
+    """The first stage of :func:`fit_recording` alone: the pre-fit from the rig's values (or
+    ``start_values``) on the first ``samples`` samples of the estimation part, with ``effects`` on.
+
+    A cheap way to ask how well a model *can* explain the start of a recording from the data sheet,
+    without the whole fit: diagnosis ranks candidate effects this way where the nominal fit ends far
+    above noise (:mod:`pneusim.diagnosis.cold`).  ``second_route`` and ``max_evaluations`` as in
+    :func:`.stages.prefit`.  Raises :class:`FitError` like :func:`fit_recording`.
+    """
+    started = time.perf_counter()
+    setup = _Setup(recording, rig, effects, free, validation_fraction, None, start_values, segment_samples)
+    pb, lo, hi = setup.problem(min(setup.n_est, int(samples)), rtol, threads)
+    try:
+        v0 = pb.join(setup.theta_start, initial_starts(pb, setup.theta_start, recording, pb.data.n_samples))
+        v, _, _ = prefit(pb, v0, lo, hi, second_route=second_route, max_evaluations=max_evaluations)
+        e = pb.evaluate(v, derivatives=False)
+        if not e["ok"]:
+            raise FitError(f"{_name(recording)}: the model could not be integrated at the pre-fit's end")
+        theta, _ = pb.split(v)
+        p = pb.params_of(theta)
+    finally:
+        pb.close()
+    cost = float(np.dot(e["r"], e["r"]))
+    n_res = int(e["r"].size)
+    return PrefitResult(cost, n_res, float(np.sqrt(cost / max(n_res, 1))),
+                        {name: float(p[i]) for name, i in zip(setup.free, setup.index)}, int(pb.data.n_samples),
+                        time.perf_counter() - started)
 
 
 class _Progress:

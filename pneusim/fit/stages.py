@@ -26,8 +26,11 @@ __all__ = ["trust_region", "continuation", "two_routes", "well_above", "prefit",
 
 #: continuity weights of the pre-fit's second route, in turn (see :func:`continuation`)
 PREFIT_DEFECT_WEIGHTS = (10.0, 1000.0)
+#: weight of the continuity defects where they are residuals: the full fit's trust region, IPOPT's penalty
+#: form (:func:`polish`), the warm refit's trust region and diagnosis's screening and cost comparisons
+PENALTY_WEIGHT = 1e4
 #: continuity weights of the full fit's second route, in turn (see :func:`full_fit`)
-FIT_DEFECT_WEIGHTS = (10.0, 1000.0, 1e4)
+FIT_DEFECT_WEIGHTS = (10.0, 1000.0, PENALTY_WEIGHT)
 #: the continuation route replaces the direct one when its residual is smaller by this factor
 CLEARLY_BETTER = 1.25
 #: a pre-fit this many times above noise says the model lacks physics (see :func:`full_fit`)
@@ -129,7 +132,7 @@ def well_above(rms: float, reference: float) -> bool:
 
 
 def two_routes(pb: ShootingProblem, v0, lower, upper, weights, second_route: bool = True,
-               reference: float = 0.0, finish=None):
+               reference: float = 0.0, finish=None, max_evaluations: int = 80):
     """The trust region from ``v0`` with continuity weighted ``weights[-1]`` at once (the *direct*
     route); when that ends above the noise level (:data:`~pneusim.fit.result.ABOVE_NOISE_WARNING`)
     and :func:`well_above` ``reference``, and ``second_route`` allows, also the
@@ -148,7 +151,7 @@ def two_routes(pb: ShootingProblem, v0, lower, upper, weights, second_route: boo
     ``info["routes"]`` lists each route's residual, evaluations and seconds; ``info["finished"]``
     holds ``finish``'s ``(result, rms)`` on the direct route when it was tried.
     """
-    v, rms, info = trust_region(pb, v0, lower, upper, defect_weight=weights[-1])
+    v, rms, info = trust_region(pb, v0, lower, upper, defect_weight=weights[-1], max_evaluations=max_evaluations)
     routes = [{"route": "direct", "rms_normalised": rms, "evaluations": info["evaluations"],
                "seconds": info["seconds"]}]
     best = (v, rms, {**info, "route": "direct"})
@@ -159,7 +162,7 @@ def two_routes(pb: ShootingProblem, v0, lower, upper, weights, second_route: boo
         routes[0]["finished_rms_normalised"] = finished[1]
         wanted = not finished[1] <= ABOVE_NOISE_WARNING
     if wanted:
-        v_c, rms_c, info_c = continuation(pb, v0, lower, upper, weights=weights)
+        v_c, rms_c, info_c = continuation(pb, v0, lower, upper, weights=weights, max_evaluations=max_evaluations)
         routes.append({"route": "continuation", "rms_normalised": rms_c, "evaluations": info_c["evaluations"],
                        "seconds": info_c["seconds"]})
         # kept only when clearly better: two routes ending at the same residual (an effect the model
@@ -174,7 +177,7 @@ def two_routes(pb: ShootingProblem, v0, lower, upper, weights, second_route: boo
     return v, rms, info
 
 
-def prefit(pb: ShootingProblem, v0, lower, upper):
+def prefit(pb: ShootingProblem, v0, lower, upper, second_route: bool | None = None, max_evaluations: int = 80):
     """The pre-fit from ``v0`` (a start tens of percent off): :func:`two_routes` with continuity
     weighted 1000, the continuation route (weight 10, then 1000) only when both chamber pressures
     are recorded.
@@ -188,9 +191,12 @@ def prefit(pb: ShootingProblem, v0, lower, upper):
     continuation's.  Without the pressures each segment's pressures are free start states, and from a
     start tens of percent off a decoupled segment trades them for the valve's critical pressure
     ratio: only the direct route is used (paper 2, closed-loop multisine: 0.98 against 3.07).
+    ``second_route`` overrides that choice; ``max_evaluations`` caps each trust-region run.
     """
-    both_pressures = {"pressure_a_Pa", "pressure_b_Pa"} <= set(pb.data.signals)
-    return two_routes(pb, v0, lower, upper, PREFIT_DEFECT_WEIGHTS, second_route=both_pressures)
+    if second_route is None:
+        second_route = {"pressure_a_Pa", "pressure_b_Pa"} <= set(pb.data.signals)
+    return two_routes(pb, v0, lower, upper, PREFIT_DEFECT_WEIGHTS, second_route=second_route,
+                      max_evaluations=max_evaluations)
 
 
 def full_fit(pb: ShootingProblem, v0, lower, upper, prefit_rms: float, finish=None):

@@ -222,6 +222,24 @@ def test_keep_test_near_the_noise_floor():
     assert not passes_test(17000.0, 17100.0, n, k, 99.2521, 99.6647, 0.331)[0]
 
 
+def test_estimation_cost_counts_the_continuity_defects_left_open():
+    """A fit that ended in the penalty form with segments left discontinuous bought part of its residual
+    with the jumps: the cost the keep test compares adds them at the fit's penalty weight, so a refit that
+    closes them is not held to an unreachable residual (practice2_14)."""
+    from types import SimpleNamespace
+
+    from pneusim.diagnosis.candidates import DEFECT_WEIGHT, estimation_cost
+
+    recording = SimpleNamespace(position_m=np.zeros(100), pressure_a_Pa=None)
+    noise = {"position_m": 2e-5}
+    closed = SimpleNamespace(recording=recording, n_estimation=80, sigma={"position_m": 4e-5},
+                             solver={"defect_sum_squares": 0.0})
+    cost, n = estimation_cost(closed, noise)
+    assert n == 80 and cost == pytest.approx(80 * 4.0)
+    open_ = SimpleNamespace(**{**vars(closed), "solver": {"defect_sum_squares": 0.021 ** 2}})
+    assert estimation_cost(open_, noise)[0] == pytest.approx(80 * 4.0 + (DEFECT_WEIGHT * 0.021) ** 2)
+
+
 
 @pytest.fixture(scope="module")
 def asymmetry_recording(tmp_path_factory):
