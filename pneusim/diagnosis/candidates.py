@@ -53,7 +53,7 @@ from ..model import ActuatorModel, make_effect
 from ..model.chamber import areas_m2
 
 __all__ = ["Candidate", "candidate_list", "screen", "refit", "noise_levels", "estimation_cost",
-           "validation_noise_points", "passes_test", "neutral_effect", "NEUTRAL", "SCREEN_SAMPLES"]
+           "validation_noise_points", "passes_test", "validation_room", "neutral_effect", "NEUTRAL", "SCREEN_SAMPLES"]
 
 #: screening uses at most this many estimation samples (the start of the estimation part)
 SCREEN_SAMPLES = 2500
@@ -249,6 +249,23 @@ def validation_noise_points(recording, n_est: int, noise: dict) -> float:
 CLEARLY_SHORT = 2.0
 #: ... and a refit's at most this many times ``F`` explains the held-out data down to noise
 AT_NOISE = 1.25
+
+
+#: the validation error of a model that explains everything but the noise is F within a few percent (the
+#: rms of N >= 1000 noise samples scatters by 1 / sqrt(2 N)); this fraction of F is below any such model's
+PERFECT_ERROR = 0.9
+
+
+def validation_room(fit0: float, floor_points: float) -> float:
+    """How far the nominal validation error ``100 - fit0`` lies above the least error any refit could
+    reach and still pass :func:`passes_test`, in points (<= 0: no refit can pass).
+
+    A refit passes on the validation part only by more than ``max(0.5, F)`` points with an error of at
+    least :data:`PERFECT_ERROR` ``F`` (what white noise leaves a perfect model), or from an error of at
+    least :data:`CLEARLY_SHORT` ``F``; a nominal error below both says that nothing can be found, whatever
+    the estimation part shows."""
+    err0 = 100.0 - fit0
+    return err0 - min(max(0.5, floor_points) + PERFECT_ERROR * floor_points, CLEARLY_SHORT * floor_points)
 
 
 def passes_test(cost0: float, cost1: float, n: int, k: int, fit0: float, fit1: float, floor_points: float) -> tuple[bool, float, str]:

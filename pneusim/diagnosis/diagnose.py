@@ -189,7 +189,14 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     trials: dict[str, CandidateTrial] = {}
     refits: dict = {}
     t_started = time.perf_counter()
-    if rms_ratio > MODEL_SHORT:
+    room = cand.validation_room(fit0, floor)
+    if room <= 0:
+        # ---- the nominal model already explains the held-out data down to the noise floor: no refit can
+        # pass the keep test there, so nothing is screened (paper-2 controls: nominal errors 1.03-1.07 F)
+        say(f"the nominal validation error {100 - fit0:.3g} points is within the keep test's reach of the noise "
+            f"floor F = {floor:.3g}: nothing can be found, no candidate is screened")
+        ranked, t_screen = [], 0.0
+    elif rms_ratio > MODEL_SHORT:
         # ---- far above noise: the nominal parameters have bent to make up for the missing physics, and
         # screening around them misranks: every candidate pre-fitted from the data sheet, the leaders fitted whole
         say(f"the nominal fit ends {rms_ratio:.3g} times above noise (more than {MODEL_SHORT:g}): every candidate "
@@ -391,6 +398,9 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
             f"max(0.5, F) = {max(0.5, floor):.2f} points, F = {floor:.2f} the fit white sensor noise alone takes "
             f"away (or by more than F where it takes a validation error of at least {cand.CLEARLY_SHORT:g} F down to "
             f"at most {cand.AT_NOISE:g} F), with the validation error at least 10 % smaller")
+    if room <= 0:
+        test += (f"; the nominal validation error, {100 - fit0:.3g} points, is already within reach of the noise "
+                 f"floor (no refit can end below {cand.PERFECT_ERROR:g} F), so no candidate was screened")
     result = DiagnosisResult(
         recording=name, rig=rig_used.name,
         validation={"t_start_s": float(recording.time_s[nominal.n_estimation]), "t_end_s": float(recording.time_s[-1])},

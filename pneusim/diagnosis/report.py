@@ -247,8 +247,11 @@ def _markdown(result: DiagnosisResult, evidence_files) -> str:
         lines += [f"| {w.t_start_s:.3f} | {w.t_end_s:.3f} | {w.signal} | {w.condition} |" for w in result.mismatch]
     else:
         lines.append("none: the nominal model explains the recording up to noise.")
-    lines += ["", "## Candidates screened and tested", "", f"Test: {result.test}.", "",
-              "| effect | screening score | refitted | validation fit (%) | kept | outcome |", "|---|---|---|---|---|---|"]
+    lines += ["", "## Candidates screened and tested", "", f"Test: {result.test}.", ""]
+    if result.candidates:
+        lines += ["| effect | screening score | refitted | validation fit (%) | kept | outcome |", "|---|---|---|---|---|---|"]
+    else:
+        lines.append("none screened (see the test above).")
     for c in result.candidates:
         lines.append(f"| {c.effect} | {_value(c.score)} | {'yes' if c.refitted else 'no'} | "
                      f"{_value(c.fit_percent)} | {'yes' if c.kept else 'no'} | {c.status} |")

@@ -28,6 +28,10 @@ CORRELATION_WARNING = 0.99
 ABOVE_NOISE_WARNING = 1.1
 #: far above noise: the model misses what the recording shows (``pneusim fit`` exits with code 3)
 FAR_ABOVE_NOISE = 1.5
+#: a continuity defect left open above this (state-scaled: 0.3 mm of a 0.3 m stroke, 1 mm/s, 100 Pa) means
+#: the fitted trajectory jumps between shooting segments (IPOPT's penalty form ended there): warned, since
+#: the residual is then lower than any continuous simulation of the model gives
+OPEN_DEFECT_WARNING = 1e-3
 
 
 @dataclass
@@ -126,7 +130,7 @@ class FitResult:
                      solver=solver, recording=recording, estimation_states=estimation_states,
                      noise_std=dict(noise_std or {}))
         result.solver["success"] = bool(result.solver.get("ipopt_success", True)) and result.converged_to_noise
-        result.warnings = result._noise_warnings() + result._identifiability_warnings()
+        result.warnings = result._noise_warnings() + result._continuity_warnings() + result._identifiability_warnings()
         return result
 
     # ----------------------------------------------------------------- access
@@ -179,6 +183,15 @@ class FitResult:
                 f"{ABOVE_NOISE_WARNING} means the model does not explain the recording down to noise: a missing "
                 "effect, a wrong rig file, a friction smoothing velocity unlike the rig file's (try freeing "
                 "friction_smoothing_velocity_m_per_s), or a fit stuck in a local minimum)"]
+
+    def _continuity_warnings(self) -> list[str]:
+        defect = float(self.solver.get("max_defect", 0.0) or 0.0)
+        if not defect > OPEN_DEFECT_WARNING:
+            return []
+        return [f"the fitted trajectory is not continuous: a shooting segment ends up to {defect:.3g} (in units of "
+                "the state scales: stroke, 1 m/s, 1 bar) away from where the next one starts, so the residual is "
+                "lower than a continuous simulation of the fitted model gives (the optimiser ended in its penalty "
+                f"form; {self.solver.get('formulation', '')})"]
 
     def _identifiability_warnings(self) -> list[str]:
         out = []
