@@ -17,7 +17,8 @@ from .controller import Controller, ProportionalController
 from .errors import PneusimError
 from .rig import Rig
 
-__all__ = ["Experiment", "multisine", "random_steps", "pulse_train", "command_doublets",
+__all__ = ["Experiment", "multisine", "random_steps", "pulse_train", "command_doublets", "Recentering",
+           "recentering_doublets",
            "standard_experiment", "INPUT_KINDS", "default_controller"]
 
 INPUT_KINDS = ("multisine", "steps", "pulses")
@@ -54,6 +55,9 @@ class Experiment:
     initial_pressures_Pa: tuple[float, float] | None = None
     description: str = ""
     metadata: dict = field(default_factory=dict)
+    #: open loop only: ``supervisor(k, measured_position_m) -> command_V or None`` may replace the planned
+    #: command of sample ``k`` (an operator bringing a drifting piston back); None keeps the plan
+    supervisor: object = None
 
     def __post_init__(self):
         self.signal = np.asarray(self.signal, dtype=float).ravel()
@@ -67,6 +71,8 @@ class Experiment:
             raise PneusimError("the experiment signal must hold at least 2 finite samples")
         if self.warmup_s < 0:
             raise PneusimError(f"warmup_s must not be negative, got {self.warmup_s}")
+        if self.supervisor is not None and self.loop != "open":
+            raise PneusimError("a supervisor replaces planned open-loop commands; a closed loop has its controller")
 
     @property
     def n_samples(self) -> int:
@@ -126,6 +132,59 @@ def command_doublets(n, sample_time_s, null_V, amplitude_V=(1.5, 3.0), half_s=(0
         y[k + half:k + 2 * half] = null_V - a
         k += 2 * half + max(1, int(round(rng.uniform(*rest_s) / sample_time_s)))
     return y
+
+
+class Recentering:
+    """An open-loop supervisor: at the start of each planned doublet, a piston measured more than ``band_m``
+    from mid-stroke gets a single pulse towards the middle instead (the doublet's first half, its amplitude,
+    signed towards the middle), as an operator keeps an open-loop test off the end stops.
+
+    Parameters
+    ----------
+    starts : dict
+        ``{first sample of a doublet: (half length in samples, amplitude V)}``.
+    null_V, mid_m, band_m : float
+    """
+
+    def __init__(self, starts: dict, null_V: float, mid_m: float, band_m: float):
+        self.starts, self.null_V, self.mid_m, self.band_m = dict(starts), float(null_V), float(mid_m), float(band_m)
+        self._pulse_until, self._pulse_first_half_end, self._pulse_V = -1, -1, 0.0
+
+    def __call__(self, k: int, measured_m: float):
+        if k in self.starts and abs(measured_m - self.mid_m) > self.band_m:
+            half, amplitude = self.starts[k]
+            # a positive command above null extends the piston: push towards the middle
+            self._pulse_until = k + 2 * half
+            self._pulse_V = self.null_V + (abs(amplitude) if measured_m < self.mid_m else -abs(amplitude))
+            self._pulse_first_half_end = k + half
+        if k < self._pulse_until:
+            return self._pulse_V if k < self._pulse_first_half_end else self.null_V
+        return None
+
+
+def recentering_doublets(rig: Rig, duration_s: float, seed: int = 0, band: float = 0.12) -> Experiment:
+    """Open-loop command doublets about the null (as ``standard_experiment(rig, "pulses", loop="open")``) with a
+    :class:`Recentering` supervisor: a piston more than ``band`` of the stroke from mid-stroke at the start of
+    a doublet gets one pulse towards the middle instead.  The command recorded is what the valve got."""
+    ts = rig.sample_time_s
+    n = int(round(duration_s / ts))
+    rng = np.random.default_rng(seed)
+    null = rig.params["valve_null_V"]
+    half_s = (0.08, 0.2) if ts >= 0.005 else (0.015, 0.04)
+    rest_s = (0.8, 2.5) if ts >= 0.005 else (0.2, 0.6)
+    sig = np.full(n, float(null))
+    starts = {}
+    k = int(round(rng.uniform(*rest_s) / ts))
+    while k < n:
+        half = max(1, int(round(rng.uniform(*half_s) / ts)))
+        a = rng.choice((-1.0, 1.0)) * rng.uniform(1.5, 3.0)
+        sig[k:k + half] = null + a
+        sig[k + half:k + 2 * half] = null - a
+        starts[k] = (half, a)
+        k += 2 * half + max(1, int(round(rng.uniform(*rest_s) / ts)))
+    supervisor = Recentering(starts, null, 0.5 * rig.stroke_m, band * rig.stroke_m)
+    return Experiment("open", ts, sig, None, description="open-loop command doublets, recentred beyond "
+                      f"{100 * band:g} % of the stroke from the middle", supervisor=supervisor)
 
 
 def default_controller(rig: Rig, kp_V_per_m: float | None = None) -> ProportionalController:

@@ -113,7 +113,9 @@ def simulate(rig: Rig, experiment: Experiment, effects: Sequence[Effect] = (), *
     pa, pb = np.empty(n), np.empty(n)
     states = np.empty((n, n_states))
     started = time.perf_counter()
-    loop = plant.compiled_loop(controller if closed else None) if COMPILED_LOOP else None
+    supervisor = experiment.supervisor
+    # the compiled loop knows the built-in controller and planned commands; a supervisor runs in Python
+    loop = plant.compiled_loop(controller if closed else None) if COMPILED_LOOP and supervisor is None else None
     if loop is not None:
         # the same loop in C (built-in sensors, proportional controller or open loop, CVODE)
         signal = np.ascontiguousarray(experiment.signal, dtype=float)
@@ -142,6 +144,9 @@ def simulate(rig: Rig, experiment: Experiment, effects: Sequence[Effect] = (), *
             reading = plant.measure()
             ref = experiment.signal[max(k, 0)]
             u = controller.command(reading.t_s, ref, reading.position_m) if closed else ref
+            if supervisor is not None and k >= 0:
+                override = supervisor(k, reading.position_m)
+                u = ref if override is None else override
             if k >= 0:
                 positions[k], commands[k] = reading.position_m, u
                 pa[k], pb[k] = reading.pressure_a_Pa, reading.pressure_b_Pa

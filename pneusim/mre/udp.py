@@ -189,7 +189,7 @@ class UdpPlant:
                 self._last = Measurement(t_s, self._last.position_m, self._last.pressure_a_Pa,
                                          self._last.pressure_b_Pa)
                 return self._last
-            kind, flags, seq = msg[0], msg[1], msg[2]
+            kind, _flags, seq = msg[0], msg[1], msg[2]
             if kind != MEAS:
                 continue
             if seq < self._k:
