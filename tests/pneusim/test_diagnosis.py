@@ -222,6 +222,22 @@ def test_keep_test_near_the_noise_floor():
     assert not passes_test(17000.0, 17100.0, n, k, 99.2521, 99.6647, 0.331)[0]
 
 
+def test_nothing_is_screened_where_no_refit_could_pass_on_the_validation_part():
+    """A nominal validation error already within reach of the noise floor leaves no room for a refit to pass
+    the keep test, whatever it does on the estimation part."""
+    from pneusim.diagnosis.candidates import PERFECT_ERROR, passes_test, validation_room
+
+    F = 0.3
+    # a paper-2 control: the nominal error 1.05 F; the best a refit can reach is about F
+    assert validation_room(100 - 1.05 * F, F) <= 0
+    assert not passes_test(17000.0, 16000.0, 16800, 2, 100 - 1.05 * F, 100 - PERFECT_ERROR * F, F)[0]
+    # practice2_17: 2.26 F -- room for the near-floor rule
+    assert validation_room(100 - 2.26 * F, F) > 0
+    assert passes_test(17000.0, 16800.0, 16800, 2, 100 - 2.26 * F, 100 - 1.01 * F, F)[0]
+    # a large noise floor: the 0.5-point rule can never pass below 0.5 + 0.9 F, the near-floor one below 2 F
+    assert validation_room(100 - 1.85, 1.0) <= 0 and validation_room(100 - 2.1, 1.0) > 0
+
+
 def test_estimation_cost_counts_the_continuity_defects_left_open():
     """A fit that ended in the penalty form with segments left discontinuous bought part of its residual
     with the jumps: the cost the keep test compares adds them at the fit's penalty weight, so a refit that

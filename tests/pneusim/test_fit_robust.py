@@ -91,6 +91,22 @@ def test_start_values_override_the_warm_start(deadband_case, nominal_fit):
         fit_recording(rec, rig, warm_start=nominal_fit, start_values={"friction_kinetic_N": 1.0}, quiet=True)
 
 
+def test_prefit_alone_tells_the_missing_effect_from_the_data_sheet(deadband_case):
+    """The pre-fit alone (diagnosis's screening far above noise): from the data sheet, with the dead band
+    on, the first 2000 samples are explained down to about the noise and the dead band comes back; the
+    nominal model's pre-fit on the same window stays far above noise."""
+    from pneusim.fit import prefit_recording
+
+    rig, rec, _ = deadband_case
+    nominal = prefit_recording(rec, rig, [], second_route=False, max_evaluations=40)
+    with_it = prefit_recording(rec, rig, [make_effect("valve_deadband", deadband_V=0.02)], second_route=False,
+                               max_evaluations=40)
+    assert nominal.samples == with_it.samples == min(2000, int(round(0.7 * rec.n_samples)))
+    assert nominal.normalised_residual > FAR_ABOVE_NOISE
+    assert with_it.normalised_residual < 1.2 and with_it.cost < 0.5 * nominal.cost
+    assert with_it.estimates["valve_deadband.deadband_V"] == pytest.approx(DEADBAND_V, rel=0.05)
+
+
 def test_warm_start_from_another_recording_is_refused(deadband_case, nominal_fit):
     from pneusim.errors import FitError
 
