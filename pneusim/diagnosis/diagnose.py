@@ -28,7 +28,7 @@ from ..errors import FitError, PneusimError
 from ..fit import fit_recording
 from ..fit.stages import MODEL_SHORT
 from ..fit.threads import one_blas_thread
-from .cold import NominalBaseline, confirm_from_data_sheet, screen_from_data_sheet
+from .cold import WINDOW_SAMPLES, NominalBaseline, confirm_from_data_sheet, mismatch_window, screen_from_data_sheet
 from .delay import refine_from_screening, scan_with_refits
 from ..model import make_effect
 from ..recording import Recording, read_recording
@@ -51,6 +51,10 @@ FAMILIES = (("transport_delay", "valve_dynamics"),
             ("friction_asymmetry", "external_load", "pressure_dependent_friction"),
             ("valve_offset", "valve_deadband"),
             ("leakage", "heat_transfer", "supply_pressure_droop"))
+#: at most this many kept candidates are refitted on top of the first finding (best validation fit first):
+#: far from noise nearly every candidate passes the test against the nominal model alone (practice2_07, a
+#: friction asymmetry: five others kept, three refitted on top, none kept there, 150 s)
+ON_TOP_REFITS = 2
 #: with no effect kept, a nominal residual rms above this multiple of the sensor noise is reported as
 #: an ``other`` finding (the nominal model is clearly short, but no vocabulary effect explains it)
 OTHER_RESIDUAL = 3.0
@@ -201,8 +205,9 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
         # screening around them misranks: every candidate pre-fitted from the data sheet, the leaders fitted whole
         say(f"the nominal fit ends {rms_ratio:.3g} times above noise (more than {MODEL_SHORT:g}): every candidate "
             "is screened from the data sheet")
+        start = mismatch_window(nominal, recording, noise, WINDOW_SAMPLES)
         trials, variants, ranked = screen_from_data_sheet(recording, rig_used, candidates, validation_fraction,
-                                                          signatures, _family, say)
+                                                          signatures, _family, say, start)
         t_screen = time.perf_counter() - t_started
         say("screening from the data sheet ranks " + ", ".join(f"{k} ({variants[k][0]:.0f})" for k in ranked[:5]))
         confirm_from_data_sheet(recording, rig_used, ranked, variants, trials, refits, basis, _family, max_refits,
@@ -341,9 +346,14 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
         findings.append(_finding(first, final, fit0, trials[first]))
         # ---- a second effect on top of the first: the other kept candidates, best first
         base_top = None
+        tried_on_top = 0
         for eff in kept[1:]:
             if len(findings) >= max_findings:
                 break
+            if tried_on_top >= ON_TOP_REFITS:
+                trials[eff].status += f"; not refitted on top of {first} (the {ON_TOP_REFITS} best kept were)"
+                trials[eff].kept = False
+                continue
             c = refits[eff][1]
             effect = _effect_with(c, {"parameters": trials[eff].parameters})
             # a refit on top costs as much as the first; screen first whether the candidate still explains
@@ -365,6 +375,7 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
                 trials[eff].kept = False
                 continue
             _progress(progress, f"{name}: refit with {first} and {eff}")
+            tried_on_top += 1
             try:
                 fit2 = cand.refit(recording, rig_used, list(final.effects_) + [effect], final)
             except Exception as exc:  # noqa: BLE001

@@ -404,16 +404,28 @@ class PrefitResult:
 def prefit_recording(recording: Recording, rig: Rig | str | None = None, effects: Sequence[Effect] = (),
                      free: Sequence[str] | None = None, *, samples: int = 2000, start_values: dict | None = None,
                      validation_fraction: float | None = None, segment_samples: int = 50, rtol: float = 1e-6,
-                     threads: int = 2, second_route: bool | None = None, max_evaluations: int = 80) -> PrefitResult:
+                     threads: int = 2, second_route: bool | None = None, max_evaluations: int = 80,
+                     start: int = 0) -> PrefitResult:
     """The first stage of :func:`fit_recording` alone: the pre-fit from the rig's values (or
     ``start_values``) on the first ``samples`` samples of the estimation part, with ``effects`` on.
 
     A cheap way to ask how well a model *can* explain the start of a recording from the data sheet,
     without the whole fit: diagnosis ranks candidate effects this way where the nominal fit ends far
     above noise (:mod:`pneusim.diagnosis.cold`).  ``second_route`` and ``max_evaluations`` as in
-    :func:`.stages.prefit`.  Raises :class:`FitError` like :func:`fit_recording`.
+    :func:`.stages.prefit`.  ``start``: the window begins at this sample of the estimation part instead
+    of its first (the recording's estimation/validation split stays where ``validation_fraction`` puts
+    it).  Raises :class:`FitError` like :func:`fit_recording`.
     """
     started = time.perf_counter()
+    if start > 0:
+        n = recording.n_samples
+        split = int(round(n * (1.0 - (DEFAULT_VALIDATION_FRACTION if validation_fraction is None
+                                      else validation_fraction))))
+        if not 0 < start < split - 100:
+            raise FitError(f"{_name(recording)}: a pre-fit window from sample {start} leaves fewer than 100 samples "
+                           f"before the validation part (from sample {split})")
+        recording = recording.slice(recording.time_s[start], None)
+        validation_fraction = (n - split) / (n - start)
     setup = _Setup(recording, rig, effects, free, validation_fraction, None, start_values, segment_samples)
     pb, lo, hi = setup.problem(min(setup.n_est, int(samples)), rtol, threads)
     try:
