@@ -119,19 +119,31 @@ def pulse_train(n, sample_time_s, base, amplitude=(0.1, 0.3), width_s=(0.02, 0.1
     return y
 
 
-def command_doublets(n, sample_time_s, null_V, amplitude_V=(1.5, 3.0), half_s=(0.08, 0.2),
-                     rest_s=(0.8, 2.5), rng=None):
-    """Open-loop valve command: doublets (+a then -a) about the null, with rests at the null."""
+def _doublet_plan(n, sample_time_s, null_V, amplitude_V, half_s, rest_s, rng):
+    """Doublets (+a then -a) about the null with rests at the null: ``(signal, {first sample: (half, a)})``."""
     rng = np.random.default_rng(rng)
     y = np.full(n, float(null_V))
+    starts = {}
     k = int(round(rng.uniform(*rest_s) / sample_time_s))
     while k < n:
         half = max(1, int(round(rng.uniform(*half_s) / sample_time_s)))
         a = rng.choice((-1.0, 1.0)) * rng.uniform(*amplitude_V)
         y[k:k + half] = null_V + a
         y[k + half:k + 2 * half] = null_V - a
+        starts[k] = (half, a)
         k += 2 * half + max(1, int(round(rng.uniform(*rest_s) / sample_time_s)))
-    return y
+    return y, starts
+
+
+def command_doublets(n, sample_time_s, null_V, amplitude_V=(1.5, 3.0), half_s=(0.08, 0.2),
+                     rest_s=(0.8, 2.5), rng=None):
+    """Open-loop valve command: doublets (+a then -a) about the null, with rests at the null."""
+    return _doublet_plan(n, sample_time_s, null_V, amplitude_V, half_s, rest_s, rng)[0]
+
+
+def _doublet_timing(sample_time_s: float) -> tuple:
+    """``(half_s, rest_s)`` of the standard open-loop doublets: shorter on a fast (1 kHz) rig."""
+    return ((0.08, 0.2), (0.8, 2.5)) if sample_time_s >= 0.005 else ((0.015, 0.04), (0.2, 0.6))
 
 
 class Recentering:
@@ -167,21 +179,8 @@ def recentering_doublets(rig: Rig, duration_s: float, seed: int = 0, band: float
     :class:`Recentering` supervisor: a piston more than ``band`` of the stroke from mid-stroke at the start of
     a doublet gets one pulse towards the middle instead.  The command recorded is what the valve got."""
     ts = rig.sample_time_s
-    n = int(round(duration_s / ts))
-    rng = np.random.default_rng(seed)
     null = rig.params["valve_null_V"]
-    half_s = (0.08, 0.2) if ts >= 0.005 else (0.015, 0.04)
-    rest_s = (0.8, 2.5) if ts >= 0.005 else (0.2, 0.6)
-    sig = np.full(n, float(null))
-    starts = {}
-    k = int(round(rng.uniform(*rest_s) / ts))
-    while k < n:
-        half = max(1, int(round(rng.uniform(*half_s) / ts)))
-        a = rng.choice((-1.0, 1.0)) * rng.uniform(1.5, 3.0)
-        sig[k:k + half] = null + a
-        sig[k + half:k + 2 * half] = null - a
-        starts[k] = (half, a)
-        k += 2 * half + max(1, int(round(rng.uniform(*rest_s) / ts)))
+    sig, starts = _doublet_plan(int(round(duration_s / ts)), ts, null, (1.5, 3.0), *_doublet_timing(ts), seed)
     supervisor = Recentering(starts, null, 0.5 * rig.stroke_m, band * rig.stroke_m)
     return Experiment("open", ts, sig, None, description="open-loop command doublets, recentred beyond "
                       f"{100 * band:g} % of the stroke from the middle", supervisor=supervisor)
@@ -228,6 +227,5 @@ def standard_experiment(rig: Rig, kind: str, duration_s: float, loop: str = "clo
     elif kind == "steps":
         sig = null + random_steps(n, ts, -1.0, 1.0, (0.05, 0.3), rng)
     else:
-        sig = command_doublets(n, ts, null, (1.5, 3.0), (0.08, 0.2) if ts >= 0.005 else (0.015, 0.04),
-                               (0.8, 2.5) if ts >= 0.005 else (0.2, 0.6), rng)
+        sig = command_doublets(n, ts, null, (1.5, 3.0), *_doublet_timing(ts), rng)
     return Experiment("open", ts, sig, None, description=f"open-loop {kind} command")
