@@ -386,6 +386,34 @@ def refit(recording, rig, effects, warm, start_values=None):
     return fit_recording(recording, rig, effects, warm_start=warm, start_values=start_values, quiet=True)
 
 
+def retry_from_neutral(recording, rig, candidate: Candidate, nominal, fit1, cost1: float, noise: dict,
+                       say=lambda message: None):
+    """A refit nests the nominal model: one that ends above the nominal fit's estimation residual was led
+    into a worse basin by its start (a screened value, or the data sheet).  Once more from the effect's
+    neutral value, warm from the nominal fit (its optimum is then the start, and the refit can only go
+    down from it).  Returns ``(fit, cost, note)``: the lower of the two, and a note for the trial's
+    status (empty when nothing was retried: the refit is below the nominal residual, or the effect has
+    no neutral value)."""
+    cost0, _ = estimation_cost(nominal, noise)
+    neutral = neutral_effect(candidate)
+    if not cost1 > cost0 or neutral is None:
+        return fit1, cost1, ""
+    say(f"refit with {candidate.label} ended above the nominal residual ({cost1:.0f} > {cost0:.0f}); again from "
+        f"{candidate.name} at its neutral value")
+    try:
+        again = refit(recording, rig, [neutral], nominal)
+        cost_again, _ = estimation_cost(again, noise)
+    except Exception as exc:  # noqa: BLE001 - the first refit stands
+        if not is_solver_failure(exc):
+            raise
+        again, cost_again = None, math.inf
+    note = (f"; refitted from its start to {cost1:.0f} > nominal {cost0:.0f}, again from the neutral value "
+            f"to {cost_again:.0f}")
+    if cost_again < cost1:
+        return again, cost_again, note
+    return fit1, cost1, note
+
+
 def effect_parameters(fit, effect_name: str) -> tuple[dict, dict]:
     """The fitted parameters of ``effect_name`` in ``fit`` (without the prefix), with standard errors;
     options (leak path, kind) as strings."""

@@ -47,7 +47,8 @@ PREFIT_EVALUATIONS = 40
 
 class NominalBaseline(NamedTuple):
     """What the keep test compares a refit with: the sensor noise, the nominal fit's estimation
-    residual sum of squares and residual count, its validation fit %, the noise floor in points."""
+    residual sum of squares and residual count, its validation fit %, the noise floor in points; and
+    the nominal fit itself (a refit ending above it is retried from there)."""
 
     noise: dict
     cost0: float
@@ -55,6 +56,7 @@ class NominalBaseline(NamedTuple):
     fit0: float
     floor: float
     validation_fraction: float
+    fit: object = None
 
 
 def _start_values(rig, candidate) -> dict | None:
@@ -188,9 +190,10 @@ def confirm_from_data_sheet(recording, rig, ranked: list, variants: dict, trials
     ``trials`` and ``refits`` (``{effect: (fit, candidate)}``) are updated in place.
 
     In turn, at most :data:`MAX_FITS` fits: (1) the best-ranked member of each family with a positive
-    score, up to ``max_refits`` families, stopping once a kept one explains the recording down to
-    :data:`EXPLAINED` times the noise; (2) the look-alikes of each kept one (positive score, at most
-    ``max_lookalikes`` each), which a window cannot always tell apart; (3) while nothing kept brings the
+    score, up to ``max_refits`` families, those without states of their own first, stopping once a kept
+    one explains the recording down to :data:`EXPLAINED` times the noise; (2) the look-alikes of each kept
+    one, or of the leader when none was kept (positive score, at most ``max_lookalikes`` each), which a
+    window cannot always tell apart; (3) while nothing kept brings the
     model within :data:`~pneusim.fit.stages.MODEL_SHORT` times the noise, the leaders of the next
     families."""
     from ..fit.stages import MODEL_SHORT
@@ -217,8 +220,17 @@ def confirm_from_data_sheet(recording, rig, ranked: list, variants: dict, trials
             trial.seconds = (trial.seconds or 0.0) + time.perf_counter() - started
             return
         cost1, _ = cand.estimation_cost(fit1, basis.noise)
+        retried = ""
+        if basis.fit is not None and kept_rms() > EXPLAINED:
+            # from the data sheet into a worse basin than the nominal fit's (practice2_16, paper 2, friction 2.9
+            # times higher retracting: the asymmetry's fit ended at 13.8 times the noise, the nominal at 13.5);
+            # not once a kept fit explains the recording down to EXPLAINED (a rival from the nominal optimum
+            # could then win by noise at most, and wrong candidates end above the nominal fit often)
+            fit1, cost1, retried = cand.retry_from_neutral(recording, rig, c, basis.fit, fit1, cost1, basis.noise,
+                                                           say)
         kept, threshold, reason = cand.passes_test(basis.cost0, cost1, basis.n_residuals, c.n_added, basis.fit0,
                                                    fit1.fit_percent, basis.floor)
+        reason += retried
         values, _ = cand.effect_parameters(fit1, eff)
         trial.refitted, trial.kept, trial.status = True, kept, f"fitted from the data sheet: {reason}"
         trial.fit_percent, trial.improvement_points = fit1.fit_percent, fit1.fit_percent - basis.fit0
@@ -236,11 +248,20 @@ def confirm_from_data_sheet(recording, rig, ranked: list, variants: dict, trials
         if family(k) not in families:
             families.append(family(k))
     leaders = [next(k for k in positive if family(k) == f) for f in families]
-    for eff in leaders[:max(0, max_refits)]:
+    # the first round's families, effects without states of their own first: the stop at EXPLAINED
+    # makes the order a matter of cost, and a whole fit from the data sheet of an effect with states
+    # costs many times one without (practice2_15, paper 1, a -120 N load: heat transfer 572 s and the
+    # spool lag 547 s, screened above the load and neither kept, then the load in 25 s at 1.01 times noise)
+    first_round = sorted(leaders[:max(0, max_refits)], key=lambda k: bool(variants[k][1].effect.states))
+    for eff in first_round:
         fit_one(eff)
         if kept_rms() <= EXPLAINED:
             break
-    for target in sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent):
+    # the look-alikes of every kept one, or of the leader when none was kept (as around a nominal optimum:
+    # practice2_14, paper 1, pressure-dependent friction: the load led and was not kept, and its look-alike,
+    # the true effect, screened ninth on the window, was never fitted)
+    kept_now = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
+    for target in kept_now or [k for k in leaders[:1] if k in refits]:
         alikes = [k for k in positive if k in family(target) and k != target]
         for eff in alikes[:max(0, max_lookalikes)]:
             fit_one(eff)

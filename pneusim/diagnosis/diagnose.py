@@ -189,7 +189,7 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     rms_ratio = math.sqrt(cost0 / max(n_res, 1))
     n_screen = min(nominal.n_estimation, screen_samples or cand.SCREEN_SAMPLES) * (3 if recording.has_pressures else 1)
     say = lambda message: _progress(progress, f"{name}: {message}")  # noqa: E731
-    basis = NominalBaseline(noise, cost0, n_res, fit0, floor, validation_fraction)
+    basis = NominalBaseline(noise, cost0, n_res, fit0, floor, validation_fraction, nominal)
     trials: dict[str, CandidateTrial] = {}
     refits: dict = {}
     t_started = time.perf_counter()
@@ -268,25 +268,7 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
                 trial.refitted, trial.status, trial.seconds = True, f"refit failed: {exc}", time.perf_counter() - t0
                 return
             cost1, _ = cand.estimation_cost(fit1, noise)
-            neutral = cand.neutral_effect(c)
-            retried = ""
-            if cost1 > cost0 and neutral is not None:
-                # the refit nests the nominal model and ended above it: its screened start led it into a worse
-                # basin; once more from the effect's neutral value with the nominal parameters (the nominal
-                # optimum is then the start, and the refit can only go down from it)
-                _progress(progress, f"{name}: refit with {c.label} ended above the nominal residual "
-                                    f"({cost1:.0f} > {cost0:.0f}); again from {eff} at its neutral value")
-                try:
-                    again = cand.refit(recording, rig_used, [neutral], nominal)
-                    cost_again, _ = cand.estimation_cost(again, noise)
-                except Exception as exc:  # noqa: BLE001 - the first refit stands
-                    if not cand.is_solver_failure(exc):
-                        raise
-                    again, cost_again = None, math.inf
-                retried = (f"; refitted from its screened start to {cost1:.0f} > nominal {cost0:.0f}, again from the "
-                           f"neutral value to {cost_again:.0f}")
-                if cost_again < cost1:
-                    fit1, cost1 = again, cost_again
+            fit1, cost1, retried = cand.retry_from_neutral(recording, rig_used, c, nominal, fit1, cost1, noise, say)
             kept, thr, reason = cand.passes_test(cost0, cost1, n_res, c.n_added, fit0, fit1.fit_percent, floor)
             reason += retried
             values, _ = cand.effect_parameters(fit1, eff)
