@@ -447,3 +447,46 @@ def test_fit_from_the_data_sheet_above_the_nominal_residual_is_retried_from_the_
         monkeypatch, ["external_load", "friction_asymmetry"],
         {"external_load": (1.0, 99.8), "friction_asymmetry": (31.0, -3.0)}, retried={"friction_asymmetry": (1.1, 99.7)})
     assert fitted == ["external_load", "friction_asymmetry"]
+
+
+def _second_effect_with_stand_ins(monkeypatch, alone_rms: float, alone_fit: float):
+    """:func:`_second_effect_needed` on stand-in fits: the leak alone at 3 times the noise (94.5 %), the leak
+    with a valve offset on top at 1.0 (99.87 %), and the leak refitted alone from there at ``alone_rms``."""
+    from types import SimpleNamespace
+
+    from pneusim.diagnosis import candidates as cand
+    from pneusim.diagnosis.diagnose import _second_effect_needed
+    from pneusim.diagnosis.result import CandidateTrial, Finding
+
+    n = 5600
+    monkeypatch.setattr(cand, "estimation_cost", lambda fit, noise: (fit.rms ** 2 * n, n))
+    monkeypatch.setattr(cand, "effect_parameters", lambda fit, name: ({}, {}))
+    calls = []
+
+    def fake_refit(recording, rig, effects, warm, start_values=None):
+        calls.append(([e.name for e in effects], warm))
+        return SimpleNamespace(rms=alone_rms, fit_percent=alone_fit, estimates={}, effects_=effects)
+
+    monkeypatch.setattr(cand, "refit", fake_refit)
+    leak = make_effect("leakage")
+    final = SimpleNamespace(rms=3.0, fit_percent=94.5, estimates={}, effects_=[leak])
+    fit2 = SimpleNamespace(rms=1.0, fit_percent=99.87, estimates={}, effects_=[leak, make_effect("valve_offset")])
+    trials = {"leakage": CandidateTrial("leakage", 1.0, "ev", status="kept"),
+              "valve_offset": CandidateTrial("valve_offset", 1.0, "ev", status="kept")}
+    findings = [Finding(effect="leakage", evidence="ev", parameters={}, fit_percent=94.5, improvement_points=245.0)]
+    needed, new_final = _second_effect_needed(None, None, final, fit2, fit2.rms ** 2 * n, "valve_offset", 1,
+                                              findings, trials, {}, n, 0.15, lambda message: None)
+    assert calls == [(["leakage"], fit2)]     # the findings before it, warm from the refit on top
+    return needed, new_final, final, findings
+
+
+def test_second_effect_whose_gain_was_the_optimisers_is_not_kept(monkeypatch):
+    """A refit on top runs the optimiser on from the first finding's optimum with one more parameter: where
+    the first effect alone, refitted warm from there, does as well, the second effect is not needed, and the
+    first finding is rebuilt on that better optimum (practice_09: a leak alone, a 0.4 mV offset "on top")."""
+    needed, new_final, final, findings = _second_effect_with_stand_ins(monkeypatch, 1.0, 99.86)
+    assert not needed and new_final is not final and new_final.fit_percent == 99.86
+    assert findings[0].fit_percent == 99.86 and findings[0].improvement_points == pytest.approx(245.0 + 5.36)
+    # the second effect is needed where the first alone stays short of it
+    needed, new_final, final, findings = _second_effect_with_stand_ins(monkeypatch, 3.0, 94.6)
+    assert needed and new_final is final and findings[0].fit_percent == 94.5
