@@ -386,15 +386,15 @@ def refit(recording, rig, effects, warm, start_values=None):
     return fit_recording(recording, rig, effects, warm_start=warm, start_values=start_values, quiet=True)
 
 
-def retry_from_neutral(recording, rig, candidate: Candidate, nominal, fit1, cost1: float, noise: dict,
-                       say=lambda message: None):
+def retry_from_neutral(recording, rig, candidate: Candidate, nominal, cost0: float, fit1, cost1: float,
+                       noise: dict, say=lambda message: None):
     """A refit nests the nominal model: one that ends above the nominal fit's estimation residual was led
-    into a worse basin by its start (a screened value, or the data sheet).  Once more from the effect's
+    into a worse basin by its start (a screened value, or the data sheet); ``cost0`` is the nominal fit's
+    estimation cost, ``cost1`` the refit's.  Once more from the effect's
     neutral value, warm from the nominal fit (its optimum is then the start, and the refit can only go
     down from it).  Returns ``(fit, cost, note)``: the lower of the two, and a note for the trial's
     status (empty when nothing was retried: the refit is below the nominal residual, or the effect has
     no neutral value)."""
-    cost0, _ = estimation_cost(nominal, noise)
     neutral = neutral_effect(candidate)
     if not cost1 > cost0 or neutral is None:
         return fit1, cost1, ""

@@ -226,8 +226,8 @@ def confirm_from_data_sheet(recording, rig, ranked: list, variants: dict, trials
             # times higher retracting: the asymmetry's fit ended at 13.8 times the noise, the nominal at 13.5);
             # not once a kept fit explains the recording down to EXPLAINED (a rival from the nominal optimum
             # could then win by noise at most, and wrong candidates end above the nominal fit often)
-            fit1, cost1, retried = cand.retry_from_neutral(recording, rig, c, basis.fit, fit1, cost1, basis.noise,
-                                                           say)
+            fit1, cost1, retried = cand.retry_from_neutral(recording, rig, c, basis.fit, basis.cost0, fit1, cost1,
+                                                           basis.noise, say)
         kept, threshold, reason = cand.passes_test(basis.cost0, cost1, basis.n_residuals, c.n_added, basis.fit0,
                                                    fit1.fit_percent, basis.floor)
         reason += retried

@@ -268,7 +268,8 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
                 trial.refitted, trial.status, trial.seconds = True, f"refit failed: {exc}", time.perf_counter() - t0
                 return
             cost1, _ = cand.estimation_cost(fit1, noise)
-            fit1, cost1, retried = cand.retry_from_neutral(recording, rig_used, c, nominal, fit1, cost1, noise, say)
+            fit1, cost1, retried = cand.retry_from_neutral(recording, rig_used, c, nominal, cost0, fit1, cost1, noise,
+                                                          say)
             kept, thr, reason = cand.passes_test(cost0, cost1, n_res, c.n_added, fit0, fit1.fit_percent, floor)
             reason += retried
             values, _ = cand.effect_parameters(fit1, eff)
@@ -371,7 +372,7 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
             trials[eff].status += f"; on top of {first}: {reason}"
             if ok:
                 previous = final
-                ok, final = _second_effect_needed(recording, rig_used, final, fit2, c2, eff, c.n_added, findings,
+                ok, final = _second_effect_needed(recording, rig_used, final, c_prev, fit2, c2, eff, c.n_added, findings,
                                                   trials, noise, n_res, floor, say)
                 if final is not previous:
                     base_top = None   # the next candidates are screened on top of the better optimum
@@ -486,10 +487,10 @@ def _effect_with(c: "cand.Candidate", screened: dict):
     return make_effect(c.name, **c.effect.option_values, **values)
 
 
-def _second_effect_needed(recording, rig, final, fit2, cost2: float, eff: str, n_added: int, findings: list,
-                          trials: dict, noise: dict, n_res: int, floor: float, say) -> tuple:
-    """Whether ``eff``, kept on top of the findings so far (``final``, refitted with it as ``fit2``), is
-    needed, or whether the refit on top only found a better optimum of the findings so far: those alone
+def _second_effect_needed(recording, rig, final, cost_final: float, fit2, cost2: float, eff: str, n_added: int,
+                          findings: list, trials: dict, noise: dict, n_res: int, floor: float, say) -> tuple:
+    """Whether ``eff``, kept on top of the findings so far (``final``, estimation cost ``cost_final``;
+    refitted with ``eff`` as ``fit2``, cost ``cost2``), is needed, or whether the refit on top only found a better optimum of the findings so far: those alone
     are refitted warm from ``fit2`` and ``eff`` must pass the keep test against that.  Returns ``(needed,
     final)``, ``final`` replaced by that refit when ``eff`` is not needed and the refit is better than it
     (the last finding then rebuilt on it).
@@ -510,7 +511,6 @@ def _second_effect_needed(recording, rig, final, fit2, cost2: float, eff: str, n
                            f"({alone.fit_percent:.2f} %): {reason}")
     if needed:
         return True, final
-    cost_final, _ = cand.estimation_cost(final, noise)
     if cost_alone < cost_final:
         last = findings[-1]
         trials[last.effect].status += (f"; refitted from the optimum found with {eff} on top: validation "

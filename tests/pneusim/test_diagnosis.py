@@ -474,8 +474,8 @@ def _second_effect_with_stand_ins(monkeypatch, alone_rms: float, alone_fit: floa
     trials = {"leakage": CandidateTrial("leakage", 1.0, "ev", status="kept"),
               "valve_offset": CandidateTrial("valve_offset", 1.0, "ev", status="kept")}
     findings = [Finding(effect="leakage", evidence="ev", parameters={}, fit_percent=94.5, improvement_points=245.0)]
-    needed, new_final = _second_effect_needed(None, None, final, fit2, fit2.rms ** 2 * n, "valve_offset", 1,
-                                              findings, trials, {}, n, 0.15, lambda message: None)
+    needed, new_final = _second_effect_needed(None, None, final, final.rms ** 2 * n, fit2, fit2.rms ** 2 * n,
+                                              "valve_offset", 1, findings, trials, {}, n, 0.15, lambda message: None)
     assert calls == [(["leakage"], fit2)]     # the findings before it, warm from the refit on top
     return needed, new_final, final, findings
 
