@@ -7,13 +7,15 @@ Steps (each in its own module):
 2. **locate** (:mod:`.locate`) -- windows where the residual of the fitted nominal model exceeds
    the sensor noise, tagged with signal and operating condition;
 3. **signatures** (:mod:`.signatures`) -- the vocabulary's signatures as numbers;
-4. **screen and confirm** (:mod:`.candidates`) -- every vocabulary effect screened by its
-   likelihood gain from the nominal optimum, the leading ones refitted (effect and nominal
-   parameters together) and kept only when they pass an information criterion on the estimation
-   part *and* improve the validation fit by more than noise explains; where the nominal fit ends
-   more than :data:`~pneusim.fit.stages.MODEL_SHORT` times above noise its parameters have bent to
-   make up for the missing physics, and the candidates are screened and fitted from the data sheet
-   instead (:mod:`.cold`); a second effect is then tried on top of the first.
+4. **screen and confirm** -- every vocabulary effect screened by its likelihood gain from the
+   nominal optimum, the leading ones refitted warm from it (effect and nominal parameters together,
+   :mod:`.warm`) and kept only when they pass an information criterion on the estimation part *and*
+   improve the validation fit by more than noise explains (:mod:`.candidates`); where the nominal
+   fit ends more than :data:`~pneusim.fit.stages.MODEL_SHORT` times above noise its parameters have
+   bent to make up for the missing physics, and the candidates are screened and fitted from the data
+   sheet instead (:mod:`.cold`); a kept delay is scanned with refits (:mod:`.delay`);
+5. **findings** -- the kept candidate with the best validation fit first, and a second effect on top
+   of it (:func:`_add_findings`).
 """
 
 from __future__ import annotations
@@ -29,23 +31,19 @@ from ..fit import fit_recording
 from ..fit.stages import MODEL_SHORT
 from ..fit.threads import one_blas_thread
 from .cold import WINDOW_SAMPLES, NominalBaseline, confirm_from_data_sheet, mismatch_window, screen_from_data_sheet
-from .delay import refine_from_screening, scan_with_refits
-from ..model import make_effect
+from .delay import scan_with_refits
 from ..recording import Recording, read_recording
 from ..rig import Rig, load_rig
 from . import candidates as cand
 from .locate import locate_mismatch
 from .result import CandidateTrial, DiagnosisResult, Finding
-from .signatures import compute_signatures, evidence_text
+from .signatures import compute_signatures
+from .warm import MIN_EXPLAINED, confirm_around_nominal, effect_with, screen_around_nominal
 
 __all__ = ["diagnose", "MIN_SAMPLES"]
 
 #: a recording shorter than this cannot be split into estimation and validation parts worth fitting
 MIN_SAMPLES = 500
-#: a candidate is refitted when its screening score is at least this fraction of the leading one's
-RELATIVE_SCORE = 0.05
-#: ... and it explains at least this fraction of the nominal residual sum of squares (in noise units)
-MIN_EXPLAINED = 0.01
 #: effects with look-alike signatures: when one leads the screening, the others are refitted too
 FAMILIES = (("transport_delay", "valve_dynamics"),
             ("friction_asymmetry", "external_load", "pressure_dependent_friction"),
@@ -213,110 +211,13 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
         confirm_from_data_sheet(recording, rig_used, ranked, variants, trials, refits, basis, _family, max_refits,
                                 max_lookalikes, say)
     else:
-        # ---- screening: likelihood gain of each candidate from the nominal optimum
-        base = cand.screen(nominal, recording, None, noise, screen_samples)
-        best_variant: dict[str, tuple[float, cand.Candidate, dict]] = {}
-        delay_scan = []
-        for c in candidates:
-            try:
-                s = cand.screen(nominal, recording, c, noise, screen_samples)
-                gain = base["cost"] - s["cost"]
-            except Exception as exc:  # noqa: BLE001 - a candidate that cannot be integrated is reported, not raised
-                if not cand.is_solver_failure(exc):
-                    raise
-                s, gain = {"parameters": {}, "seconds": None, "error": str(exc)}, -math.inf
-            score = gain - c.n_added * math.log(max(n_screen, 2))
-            if c.name == "transport_delay":
-                delay_scan.append((c.effect.values["delay_s"], gain))
-            if c.name not in best_variant or score > best_variant[c.name][0]:
-                best_variant[c.name] = (score, c, s)
-        if delay_scan and "transport_delay" in best_variant:
-            d_best = refine_from_screening(delay_scan, recording.sample_time_s)
-            score, c, s = best_variant["transport_delay"]
-            c = cand.Candidate("transport_delay", f"transport delay {d_best * 1e3:.3g} ms",
-                               make_effect("transport_delay", delay_s=d_best), [])
-            s = dict(s, parameters={"delay_s": d_best})
-            best_variant["transport_delay"] = (score, c, s)
-        for eff, (score, c, s) in best_variant.items():
-            ev = evidence_text(eff, signatures)
-            if math.isfinite(score):
-                ev += f"; screening: switching it on ({c.label}) explains {score + c.n_added * math.log(max(n_screen, 2)):.0f} " \
-                      f"of the normalised residual sum of squares {base['cost']:.0f}"
-            trials[eff] = CandidateTrial(eff, score, ev, status="screening failed: " + s["error"] if "error" in s
-                                         else "not refitted", parameters=dict(s.get("parameters", {})),
-                                         seconds=s.get("seconds"))
-        ranked = sorted(best_variant, key=lambda k: -best_variant[k][0])
+        # ---- near noise: likelihood gain of each candidate from the nominal optimum, the leaders refitted warm
+        trials, variants, ranked, base_cost = screen_around_nominal(nominal, recording, candidates, noise, signatures,
+                                                                    screen_samples, n_screen)
         t_screen = time.perf_counter() - t_started
-        _progress(progress, f"{name}: screening ranks " + ", ".join(f"{k} ({best_variant[k][0]:.0f})" for k in ranked[:5]))
-
-        # ---- confirmation refits of the leading candidates, one at a time against the nominal model
-        top = best_variant[ranked[0]][0] if ranked else 0.0
-        least = max(MIN_EXPLAINED * base["cost"], RELATIVE_SCORE * top, 0.0)
-        leading = [k for k in ranked if best_variant[k][0] > least]
-
-        def confirm(eff):
-            """Refit with ``eff`` against the nominal model and apply the keep test."""
-            score, c, s = best_variant[eff]
-            trial = trials[eff]
-            t0 = time.perf_counter()
-            _progress(progress, f"{name}: refit with {c.label}")
-            try:
-                fit1 = cand.refit(recording, rig_used, [_effect_with(c, s)], nominal, s.get("start_values"))
-            except Exception as exc:  # noqa: BLE001 - a failed refit is reported in the result
-                if not cand.is_solver_failure(exc):
-                    raise
-                trial.refitted, trial.status, trial.seconds = True, f"refit failed: {exc}", time.perf_counter() - t0
-                return
-            cost1, _ = cand.estimation_cost(fit1, noise)
-            fit1, cost1, retried = cand.retry_from_neutral(recording, rig_used, c, nominal, cost0, fit1, cost1, noise,
-                                                          say)
-            kept, thr, reason = cand.passes_test(cost0, cost1, n_res, c.n_added, fit0, fit1.fit_percent, floor)
-            reason += retried
-            values, _ = cand.effect_parameters(fit1, eff)
-            trial.refitted, trial.kept, trial.status = True, kept, reason
-            trial.fit_percent, trial.improvement_points = fit1.fit_percent, fit1.fit_percent - fit0
-            trial.estimation_cost_drop, trial.threshold = cost0 - cost1, thr
-            trial.parameters, trial.seconds = values, time.perf_counter() - t0
-            refits[eff] = (fit1, c)
-
-        # round 1: the best-screened member of each of the leading families (distinct hypotheses first: a
-        # few trust-region steps rank look-alikes unreliably, and an open-loop drift inflates the scores of
-        # flexible effects, so the leader alone is not enough)
-        chosen, families_seen = [], set()
-
-        def confirm_family_leaders(pool):
-            """Refit the first of each family not yet refitted in ``pool`` (screening order), up to max_refits."""
-            for k in pool:
-                if len(chosen) >= max(0, max_refits):
-                    return
-                if _family(k) not in families_seen:
-                    families_seen.add(_family(k))
-                    chosen.append(k)
-                    confirm(k)
-
-        confirm_family_leaders(leading)
-        # nothing kept: the leader may have dwarfed the rest in the screening only (far from the optimum a few
-        # trust-region steps of a flexible effect explain most: practice2_04, a -450 N load at 118 times the
-        # noise, screened heat transfer at 14.8e6 and the load at 0.85e6, under the 1 % cut), so the next
-        # families by screening order get their refits too, up to max_refits in all
-        if not any(trials[k].kept for k in chosen):
-            confirm_family_leaders([k for k in ranked if best_variant[k][0] > 0])
-        # round 2: the look-alikes of every kept candidate, best validation fit first (or of the leader
-        # when nothing was kept): a few trust-region steps cannot tell a spool lag from a dead time, or
-        # one friction law from another, but a whole refit can.  Every kept one, not only the winner: on
-        # practice2_15 (paper 1, a -120 N load in closed loop) friction asymmetry was kept with its retract
-        # factor at the bound 0.05 (a law mimicking a force towards retraction) and a valve offset won at
-        # 78 %, and the load, screened level with the asymmetry, was never refitted
-        kept_now = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
-        targets = kept_now or chosen[:1]
-        for target in targets:
-            # only look-alikes that explained something in the screening: one that made the residual worse
-            # there (a control's dead band, screened at -4.7e5 beside an offset at +270) is no rival of the
-            # winner, and its refit from that start wanders (296 s for nothing)
-            alikes = [k for k in ranked if k in _family(target) and k != target and not trials[k].refitted
-                      and best_variant[k][0] > 0]
-            for eff in alikes[:max(0, max_lookalikes)]:
-                confirm(eff)
+        say("screening ranks " + ", ".join(f"{k} ({variants[k][0]:.0f})" for k in ranked[:5]))
+        confirm_around_nominal(recording, rig_used, ranked, variants, trials, refits, basis, base_cost, _family,
+                               max_refits, max_lookalikes, say)
 
     findings, final = [], nominal
     kept = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
@@ -324,63 +225,8 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
         _scan_kept_delay(recording, rig_used, refits, trials, noise, basis, say)
         kept = sorted((k for k in refits if trials[k].kept), key=lambda k: -refits[k][0].fit_percent)
     if kept:
-        first = kept[0]
-        final = refits[first][0]
-        findings.append(_finding(first, final, fit0, trials[first]))
-        # ---- a second effect on top of the first: the other kept candidates, best first
-        base_top = None
-        tried_on_top = 0
-        for eff in kept[1:]:
-            if len(findings) >= max_findings:
-                break
-            if tried_on_top >= ON_TOP_REFITS:
-                trials[eff].status += f"; not refitted on top of {first} (the {ON_TOP_REFITS} best kept were)"
-                trials[eff].kept = False
-                continue
-            c = refits[eff][1]
-            effect = _effect_with(c, {"parameters": trials[eff].parameters})
-            # a refit on top costs as much as the first; screen first whether the candidate still explains
-            # anything once the first finding is in (look-alikes of the first usually explain nothing more)
-            try:
-                if base_top is None:
-                    base_top = cand.screen(final, recording, None, noise, screen_samples)["cost"]
-                # from the effect's neutral start, as in the first screening: the trust region then only
-                # goes downhill from the first finding's optimum
-                gain = base_top - cand.screen(final, recording, c, noise, screen_samples)["cost"]
-            except Exception as exc:  # noqa: BLE001
-                if not cand.is_solver_failure(exc):
-                    raise
-                gain = math.inf    # cannot screen it: let the refit decide
-            score_top = gain - c.n_added * math.log(max(n_screen, 2))
-            if math.isfinite(gain) and not score_top > MIN_EXPLAINED * base_top:
-                trials[eff].status += (f"; on top of {first}: screening explains {gain:.0f} of {base_top:.0f} "
-                                       f"(score {score_top:.0f} <= {MIN_EXPLAINED:g} of it): not refitted")
-                trials[eff].kept = False
-                continue
-            _progress(progress, f"{name}: refit with {first} and {eff}")
-            tried_on_top += 1
-            try:
-                fit2 = cand.refit(recording, rig_used, list(final.effects_) + [effect], final)
-            except Exception as exc:  # noqa: BLE001
-                if not cand.is_solver_failure(exc):
-                    raise
-                trials[eff].status += f"; with {first}: refit failed: {exc}"
-                continue
-            c_prev, _ = cand.estimation_cost(final, noise)
-            c2, _ = cand.estimation_cost(fit2, noise)
-            ok, thr, reason = cand.passes_test(c_prev, c2, n_res, c.n_added, final.fit_percent, fit2.fit_percent, floor)
-            trials[eff].status += f"; on top of {first}: {reason}"
-            if ok:
-                previous = final
-                ok, final = _second_effect_needed(recording, rig_used, final, c_prev, fit2, c2, eff, c.n_added, findings,
-                                                  trials, noise, n_res, floor, say)
-                if final is not previous:
-                    base_top = None   # the next candidates are screened on top of the better optimum
-            if ok:
-                findings.append(_finding(eff, fit2, final.fit_percent, trials[eff]))
-                final = fit2
-            else:
-                trials[eff].kept = False
+        final = _add_findings(recording, rig_used, kept, refits, trials, findings, basis, screen_samples, n_screen,
+                              max_findings, say)
     if not findings and rms_ratio > OTHER_RESIDUAL and windows:
         # the nominal model is clearly short but no effect of the vocabulary explains it
         conditions = {}
@@ -466,25 +312,73 @@ def _family(effect: str) -> tuple:
     return next((family for family in FAMILIES if effect in family), (effect,))
 
 
-def _effect_with(c: "cand.Candidate", screened: dict):
-    """The candidate's effect with its screened parameter values as starting values."""
-    values = {k: v for k, v in c.effect.values.items()}
-    for q, v in screened.get("parameters", {}).items():
-        key = q.split(".", 1)[1] if "." in q else q
-        if key in values and isinstance(v, (int, float)) and math.isfinite(v):
-            values[key] = float(v)
-    if c.name == "leakage":
-        values["conductance_kg_per_s_Pa"] = max(values["conductance_kg_per_s_Pa"], 1e-11)
-    # a screening step may leave a parameter just outside the effect's physical range: start inside it
-    for key, bounds in getattr(type(c.effect), "ranges", {}).items():
-        if key in values and bounds is not None:
-            lo, hi = bounds[0], bounds[1]
-            span = 1e-6 * max(abs(values[key]), 1e-9)
-            if values[key] < lo or (values[key] == lo and not bounds[2]):
-                values[key] = lo if bounds[2] else lo + span
-            if values[key] > hi or (values[key] == hi and not bounds[3]):
-                values[key] = hi if bounds[3] else hi - span
-    return make_effect(c.name, **c.effect.option_values, **values)
+def _add_findings(recording, rig, kept: list, refits: dict, trials: dict, findings: list, basis: NominalBaseline,
+                  screen_samples, n_screen: int, max_findings: int, say):
+    """The first finding (the kept candidate with the best validation fit, ``kept[0]``) and a second
+    effect on top of it: the other kept candidates, best first, each screened on top of the first
+    finding's fit and refitted together with it when it still explains at least :data:`MIN_EXPLAINED`
+    of the residual there (at most :data:`ON_TOP_REFITS` refits), and kept when it passes the keep test
+    against the findings before it (and against those refitted alone: :func:`_second_effect_needed`).
+    ``findings`` and ``trials`` are updated in place; returns the final fit."""
+    first = kept[0]
+    final = refits[first][0]
+    findings.append(_finding(first, final, basis.fit0, trials[first]))
+    # ---- a second effect on top of the first: the other kept candidates, best first
+    base_top = None
+    tried_on_top = 0
+    for eff in kept[1:]:
+        if len(findings) >= max_findings:
+            break
+        if tried_on_top >= ON_TOP_REFITS:
+            trials[eff].status += f"; not refitted on top of {first} (the {ON_TOP_REFITS} best kept were)"
+            trials[eff].kept = False
+            continue
+        c = refits[eff][1]
+        effect = effect_with(c, {"parameters": trials[eff].parameters})
+        # a refit on top costs as much as the first; screen first whether the candidate still explains
+        # anything once the first finding is in (look-alikes of the first usually explain nothing more)
+        try:
+            if base_top is None:
+                base_top = cand.screen(final, recording, None, basis.noise, screen_samples)["cost"]
+            # from the effect's neutral start, as in the first screening: the trust region then only
+            # goes downhill from the first finding's optimum
+            gain = base_top - cand.screen(final, recording, c, basis.noise, screen_samples)["cost"]
+        except Exception as exc:  # noqa: BLE001
+            if not cand.is_solver_failure(exc):
+                raise
+            gain = math.inf    # cannot screen it: let the refit decide
+        score_top = gain - c.n_added * math.log(max(n_screen, 2))
+        if math.isfinite(gain) and not score_top > MIN_EXPLAINED * base_top:
+            trials[eff].status += (f"; on top of {first}: screening explains {gain:.0f} of {base_top:.0f} "
+                                   f"(score {score_top:.0f} <= {MIN_EXPLAINED:g} of it): not refitted")
+            trials[eff].kept = False
+            continue
+        say(f"refit with {first} and {eff}")
+        tried_on_top += 1
+        try:
+            fit2 = cand.refit(recording, rig, list(final.effects_) + [effect], final)
+        except Exception as exc:  # noqa: BLE001
+            if not cand.is_solver_failure(exc):
+                raise
+            trials[eff].status += f"; with {first}: refit failed: {exc}"
+            continue
+        c_prev, _ = cand.estimation_cost(final, basis.noise)
+        c2, _ = cand.estimation_cost(fit2, basis.noise)
+        ok, thr, reason = cand.passes_test(c_prev, c2, basis.n_residuals, c.n_added, final.fit_percent,
+                                           fit2.fit_percent, basis.floor)
+        trials[eff].status += f"; on top of {first}: {reason}"
+        if ok:
+            previous = final
+            ok, final = _second_effect_needed(recording, rig, final, c_prev, fit2, c2, eff, c.n_added, findings,
+                                              trials, basis.noise, basis.n_residuals, basis.floor, say)
+            if final is not previous:
+                base_top = None   # the next candidates are screened on top of the better optimum
+        if ok:
+            findings.append(_finding(eff, fit2, final.fit_percent, trials[eff]))
+            final = fit2
+        else:
+            trials[eff].kept = False
+    return final
 
 
 def _second_effect_needed(recording, rig, final, cost_final: float, fit2, cost2: float, eff: str, n_added: int,
