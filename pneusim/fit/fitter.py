@@ -470,7 +470,8 @@ def _routes_text(info: dict) -> str:
     routes = ", ".join(f"{r['route']} {r['rms_normalised']:.3g}"
                        + (f" (IPOPT from it {r['finished_rms_normalised']:.3g})" if "finished_rms_normalised" in r else "")
                        for r in info["routes"])
-    return f" (routes: {routes}; kept {info['route']})"
+    skipped = info["routes"][0].get("second_route_skipped")
+    return f" (routes: {routes}; kept {info['route']}" + (f"; continuation not tried: {skipped})" if skipped else ")")
 
 
 def _check_warm_start(warm: FitResult, recording: Recording, n_est: int) -> None:

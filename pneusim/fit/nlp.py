@@ -51,13 +51,21 @@ class IpoptResult:
 
 class _ClimbWatch(ca.Callback):
     """IPOPT's iteration callback: asks IPOPT to stop once ``patience`` iterates in a row have an
-    objective above ``limit`` times the first iterate's (IPOPT then returns ``User_Requested_Stop``)."""
+    objective above ``limit`` times the first iterate's (IPOPT then returns ``User_Requested_Stop``).
 
-    def __init__(self, n_v: int, n_g: int, limit: float, patience: int):
+    With ``stall = (iterations, defect_ratio)`` it also stops a run that is stuck: at iterate
+    ``iterations`` its objective is above the first iterate's while its largest continuity defect is
+    still above ``defect_ratio`` times the first iterate's (neither goal has been approached)."""
+
+    def __init__(self, n_v: int, n_g: int, limit: float, patience: int, stall: tuple[int, float] | None = None):
         ca.Callback.__init__(self)
         self.n_v, self.n_g, self.limit, self.patience = n_v, n_g, limit, patience
+        self.stall = stall
         self.first = None
+        self.first_defect = None
+        self.iterate = 0
         self.above = 0
+        self.stalled = False
         self.construct("pneusim_climb_watch", {})
 
     def get_n_in(self):
@@ -84,10 +92,15 @@ class _ClimbWatch(ca.Callback):
 
     def eval(self, arg):
         f = float(arg[1])
+        g = np.asarray(arg[2]).ravel() if self.n_g and len(arg) > 2 and arg[2] is not None else np.zeros(0)
+        defect = float(np.max(np.abs(g))) if g.size else 0.0
         if self.first is None:
-            self.first = f
+            self.first, self.first_defect = f, defect
         self.above = self.above + 1 if f > self.limit * abs(self.first) else 0
-        return [1 if self.above >= self.patience else 0]
+        if self.stall is not None and self.iterate == self.stall[0]:
+            self.stalled = f > self.first and defect > self.stall[1] * self.first_defect
+        self.iterate += 1
+        return [1 if self.above >= self.patience or self.stalled else 0]
 
 
 class _Oracle(ca.Callback):
@@ -183,7 +196,8 @@ class _Oracle(ca.Callback):
 def solve_ipopt(problem: ShootingProblem, v0: np.ndarray, lower: np.ndarray, upper: np.ndarray,
                 max_iter: int = 60, defect_tol: float = 2e-5, objective_change_tol: float = 1e-3,
                 print_level: int = 0, penalty: float | None = None,
-                give_up_climb: tuple[float, int] | None = None) -> IpoptResult:
+                give_up_climb: tuple[float, int] | None = None,
+                give_up_stall: tuple[int, float] | None = None) -> IpoptResult:
     """Solve the shooting problem from ``v0`` within bounds ``[lower, upper]`` with IPOPT.
 
     The residuals come from an adaptive integrator, so they carry its error
@@ -195,7 +209,9 @@ def solve_ipopt(problem: ShootingProblem, v0: np.ndarray, lower: np.ndarray, upp
 
     ``give_up_climb = (factor, patience)``: stop once ``patience`` iterates in a row have an
     objective above ``factor`` times the starting point's (status ``User_Requested_Stop``), for a
-    caller that would reject such a solution anyway.
+    caller that would reject such a solution anyway.  ``give_up_stall = (iterations, defect_ratio)``
+    (with ``give_up_climb``): stop too when at that iterate the objective is above the start's and the
+    largest continuity defect above ``defect_ratio`` times the start's (see :class:`_ClimbWatch`).
     """
     oracles = {kind: _Oracle(f"pneusim_{kind}", problem, kind, penalty)
                for kind in ("values", "grad_f", "jac_g", "hess_lag")}
@@ -214,7 +230,7 @@ def solve_ipopt(problem: ShootingProblem, v0: np.ndarray, lower: np.ndarray, upp
     if penalty is None:
         opts["jac_g"] = oracles["jac_g"]
     if give_up_climb is not None:
-        opts["iteration_callback"] = _ClimbWatch(problem.n_v, g.size1(), *give_up_climb)
+        opts["iteration_callback"] = _ClimbWatch(problem.n_v, g.size1(), *give_up_climb, stall=give_up_stall)
     solver = ca.nlpsol("pneusim_fit", "ipopt", {"x": v, "f": f, "g": g}, opts)
     v0 = np.clip(np.asarray(v0, float), lower, upper)
     started = time.perf_counter()

@@ -133,6 +133,28 @@ def test_climb_watch_stops_only_a_sustained_climb():
     assert not any(stops([1.0, 2.9, 3.4, 4.4, 3.6, 2.5, 1.9, 0.85]))
 
 
+def test_stall_watch_stops_only_a_run_that_approaches_neither_goal():
+    """From far above noise a constrained run is given up at iterate 8 when its objective is above the
+    start's and its largest defect above 80 % of the start's; a run closing its defects, or lowering its
+    objective, goes on."""
+    import casadi as ca
+
+    from pneusim.fit.nlp import _ClimbWatch
+
+    def stops(objectives, defects, stall=(8, 0.8)):
+        watch = _ClimbWatch(3, 2, 8.0, 5, stall=stall)
+        return [watch.eval([None, ca.DM(f), ca.DM([d, -0.5 * d])])[0] for f, d in zip(objectives, defects)]
+
+    n = 12
+    creeping = [737.0 * 1.1 ** k for k in range(n)]                  # practice_12's nominal fit: 737 -> 2733
+    stuck = [7.3e-2 * (1 - 0.002 * k) for k in range(n)]            # 7.31e-2 -> 6.8e-2
+    assert stops(creeping, stuck) == [0] * 8 + [1] * 4
+    closing = [7.3e-2 * 0.7 ** k for k in range(n)]
+    assert not any(stops(creeping, closing))                         # the defects are closing
+    assert not any(stops([737.0 * 0.99 ** k for k in range(n)], stuck))   # the objective is falling
+    assert not any(stops(creeping, stuck, stall=None))               # near noise: the rule is off
+
+
 def test_a_constrained_run_given_up_falls_back_to_the_penalty_and_still_recovers(monkeypatch):
     import pneusim.fit.stages as stages
 
@@ -148,7 +170,8 @@ def test_a_constrained_run_given_up_falls_back_to_the_penalty_and_still_recovers
 
 def test_second_route_only_when_ipopt_from_the_direct_route_stays_above_noise(monkeypatch):
     """The full fit's continuation route runs only when IPOPT from the direct route's point does not
-    reach the noise level; when it runs and is not clearly better, the finished direct route is kept."""
+    reach the noise level and ends within MODEL_SHORT times it (further above, the model lacks physics);
+    when it runs and is not clearly better, the finished direct route is kept."""
     import pneusim.fit.stages as stages
 
     calls = []
@@ -164,7 +187,8 @@ def test_second_route_only_when_ipopt_from_the_direct_route_stays_above_noise(mo
 
     monkeypatch.setattr(stages, "trust_region", fake_trust_region)
     monkeypatch.setattr(stages, "continuation", fake_continuation)
-    for finished_rms, continued in ((0.999, False), (1.6, True)):
+    for finished_rms, continued in ((0.999, False), (1.6, True), (stages.MODEL_SHORT * 0.99, True),
+                                    (stages.MODEL_SHORT * 1.01, False), (float("inf"), True)):
         calls.clear()
         v, rms, info = stages.full_fit(None, np.zeros(1), None, None, prefit_rms=0.99,
                                        finish=lambda v: ("ipopt result", finished_rms))
@@ -172,6 +196,8 @@ def test_second_route_only_when_ipopt_from_the_direct_route_stays_above_noise(mo
         assert info["route"] == "direct" and info["finished"] == ("ipopt result", finished_rms)
         assert info["routes"][0]["finished_rms_normalised"] == finished_rms
         assert info["evaluations"] == 17 + (45 if continued else 0)
+        assert ("second_route_skipped" in info["routes"][0]) == (finished_rms > stages.MODEL_SHORT
+                                                                 and np.isfinite(finished_rms))
     # without a finish (the pre-fit) the continuation follows a direct route above noise, as before
     calls.clear()
     stages.full_fit(None, np.zeros(1), None, None, prefit_rms=0.99)
