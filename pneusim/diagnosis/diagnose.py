@@ -384,14 +384,21 @@ def _add_findings(recording, rig, kept: list, refits: dict, trials: dict, findin
 def _second_effect_needed(recording, rig, final, cost_final: float, fit2, cost2: float, eff: str, n_added: int,
                           findings: list, trials: dict, noise: dict, n_res: int, floor: float, say) -> tuple:
     """Whether ``eff``, kept on top of the findings so far (``final``, estimation cost ``cost_final``;
-    refitted with ``eff`` as ``fit2``, cost ``cost2``), is needed, or whether the refit on top only found a better optimum of the findings so far: those alone
-    are refitted warm from ``fit2`` and ``eff`` must pass the keep test against that.  Returns ``(needed,
-    final)``, ``final`` replaced by that refit when ``eff`` is not needed and the refit is better than it
-    (the last finding then rebuilt on it).
+    refitted with ``eff`` as ``fit2``, cost ``cost2``), is needed, or whether the refit on top only found a
+    better optimum of the findings so far: those alone are refitted warm from ``fit2``, and where that
+    refit ends below ``final`` on the estimation part, ``eff`` must pass the keep test against it too.
+    Returns ``(needed, final)``, ``final`` replaced by that refit when ``eff`` is not needed (the last
+    finding then rebuilt on it).
 
     Why: a refit on top runs the optimiser on from the first finding's optimum with one more parameter, and
     where that first fit had stopped short, the gain is the optimiser's (``practice_09``, a leak alone:
-    the leak's fit at 94.5 %, a 0.4 mV valve offset on top at 99.9 %, BIC gain 11 886)."""
+    the leak's fit at 94.5 %, a 0.4 mV valve offset on top at 99.9 %, BIC gain 11 886; the leak refitted
+    alone from there 99.90 %).  Where the refit alone ends above ``final`` on the estimation part (what
+    the fit minimises), ``final`` had not stopped short, and the test ``eff`` passed against it stands
+    (``practice2_09``, paper 1, a load and friction asymmetry: the load alone at 89.65 %, both at 99.35 %,
+    the load refitted alone from there at 98.91 % validation but above the load's own fit on the
+    estimation part; tested against that refit, the asymmetry fell 0.06 points short of the 0.50
+    threshold and was lost)."""
     say(f"{eff} kept on top: the findings before it refitted alone from there")
     try:
         alone = cand.refit(recording, rig, list(final.effects_), fit2)
@@ -400,18 +407,21 @@ def _second_effect_needed(recording, rig, final, cost_final: float, fit2, cost2:
         if not cand.is_solver_failure(exc):
             raise
         return True, final
+    if not cost_alone < cost_final:
+        trials[eff].status += (f"; the findings before it refitted alone from that optimum end above their own fit "
+                               f"on the estimation part ({cost_alone:.0f} >= {cost_final:.0f}; validation "
+                               f"{alone.fit_percent:.2f} %): they had not stopped short, the test above stands")
+        return True, final
     needed, _, reason = cand.passes_test(cost_alone, cost2, n_res, n_added, alone.fit_percent, fit2.fit_percent, floor)
     trials[eff].status += (f"; against the findings before it refitted alone from that optimum "
                            f"({alone.fit_percent:.2f} %): {reason}")
     if needed:
         return True, final
-    if cost_alone < cost_final:
-        last = findings[-1]
-        trials[last.effect].status += (f"; refitted from the optimum found with {eff} on top: validation "
-                                       f"{final.fit_percent:.2f} -> {alone.fit_percent:.2f} %")
-        findings[-1] = _finding(last.effect, alone, last.fit_percent - last.improvement_points, trials[last.effect])
-        return False, alone
-    return False, final
+    last = findings[-1]
+    trials[last.effect].status += (f"; refitted from the optimum found with {eff} on top: validation "
+                                   f"{final.fit_percent:.2f} -> {alone.fit_percent:.2f} %")
+    findings[-1] = _finding(last.effect, alone, last.fit_percent - last.improvement_points, trials[last.effect])
+    return False, alone
 
 
 def _finding(eff: str, fit, fit_before: float, trial: CandidateTrial) -> Finding:

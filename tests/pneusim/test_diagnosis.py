@@ -488,5 +488,14 @@ def test_second_effect_whose_gain_was_the_optimisers_is_not_kept(monkeypatch):
     assert not needed and new_final is not final and new_final.fit_percent == 99.86
     assert findings[0].fit_percent == 99.86 and findings[0].improvement_points == pytest.approx(245.0 + 5.36)
     # the second effect is needed where the first alone stays short of it
-    needed, new_final, final, findings = _second_effect_with_stand_ins(monkeypatch, 3.0, 94.6)
+    needed, new_final, final, findings = _second_effect_with_stand_ins(monkeypatch, 2.9, 94.6)
+    assert needed and new_final is final and findings[0].fit_percent == 94.5
+
+
+def test_second_effect_stands_where_the_first_had_not_stopped_short(monkeypatch):
+    """Where the first effect refitted alone from the optimum with both ends above its own fit on the
+    estimation part, that fit had not stopped short: the test the second effect passed against it stands,
+    even when the refit alone validates nearly as well as both (practice2_09: a load and friction
+    asymmetry, the load refitted alone at 98.91 % against 99.35 % with both, 0.06 points short of 0.50)."""
+    needed, new_final, final, findings = _second_effect_with_stand_ins(monkeypatch, 3.2, 99.8)
     assert needed and new_final is final and findings[0].fit_percent == 94.5
