@@ -52,7 +52,7 @@ from ..fit import stages as _stages
 from ..model import ActuatorModel, make_effect
 from ..model.chamber import areas_m2
 
-__all__ = ["Candidate", "candidate_list", "screen", "refit", "noise_levels", "estimation_cost",
+__all__ = ["Candidate", "judge_refit", "candidate_list", "screen", "refit", "noise_levels", "estimation_cost",
            "validation_noise_points", "passes_test", "validation_room", "neutral_effect", "NEUTRAL", "SCREEN_SAMPLES"]
 
 #: screening uses at most this many estimation samples (the start of the estimation part)
@@ -412,6 +412,20 @@ def retry_from_neutral(recording, rig, candidate: Candidate, nominal, cost0: flo
     if cost_again < cost1:
         return again, cost_again, note
     return fit1, cost1, note
+
+
+def judge_refit(trial, eff: str, fit1, cost1: float, n_added: int, basis, note: str = "", prefix: str = "") -> bool:
+    """Apply the keep test to a refit of ``eff`` (``fit1``, estimation cost ``cost1``) against the nominal
+    fit (``basis``: its cost, residual count, validation fit and noise floor) and record it in ``trial``:
+    status ``prefix + reason + note``, fit, improvement, cost drop, threshold and the effect's parameters
+    (``trial.seconds`` is the caller's).  Returns whether it is kept."""
+    kept, threshold, reason = passes_test(basis.cost0, cost1, basis.n_residuals, n_added, basis.fit0,
+                                          fit1.fit_percent, basis.floor)
+    trial.refitted, trial.kept, trial.status = True, kept, prefix + reason + note
+    trial.fit_percent, trial.improvement_points = fit1.fit_percent, fit1.fit_percent - basis.fit0
+    trial.estimation_cost_drop, trial.threshold = basis.cost0 - cost1, threshold
+    trial.parameters, _ = effect_parameters(fit1, eff)
+    return kept
 
 
 def effect_parameters(fit, effect_name: str) -> tuple[dict, dict]:

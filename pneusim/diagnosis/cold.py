@@ -228,14 +228,7 @@ def confirm_from_data_sheet(recording, rig, ranked: list, variants: dict, trials
             # could then win by noise at most, and wrong candidates end above the nominal fit often)
             fit1, cost1, retried = cand.retry_from_neutral(recording, rig, c, basis.fit, basis.cost0, fit1, cost1,
                                                            basis.noise, say)
-        kept, threshold, reason = cand.passes_test(basis.cost0, cost1, basis.n_residuals, c.n_added, basis.fit0,
-                                                   fit1.fit_percent, basis.floor)
-        reason += retried
-        values, _ = cand.effect_parameters(fit1, eff)
-        trial.refitted, trial.kept, trial.status = True, kept, f"fitted from the data sheet: {reason}"
-        trial.fit_percent, trial.improvement_points = fit1.fit_percent, fit1.fit_percent - basis.fit0
-        trial.estimation_cost_drop, trial.threshold = basis.cost0 - cost1, threshold
-        trial.parameters = values
+        cand.judge_refit(trial, eff, fit1, cost1, c.n_added, basis, retried, prefix="fitted from the data sheet: ")
         trial.seconds = (trial.seconds or 0.0) + time.perf_counter() - started
         refits[eff] = (fit1, c)
 

@@ -109,13 +109,8 @@ def confirm_around_nominal(recording, rig, ranked: list, variants: dict, trials:
         cost1, _ = cand.estimation_cost(fit1, basis.noise)
         fit1, cost1, retried = cand.retry_from_neutral(recording, rig, c, nominal, basis.cost0, fit1, cost1,
                                                       basis.noise, say)
-        kept, thr, reason = cand.passes_test(basis.cost0, cost1, basis.n_residuals, c.n_added, basis.fit0,
-                                             fit1.fit_percent, basis.floor)
-        values, _ = cand.effect_parameters(fit1, eff)
-        trial.refitted, trial.kept, trial.status = True, kept, reason + retried
-        trial.fit_percent, trial.improvement_points = fit1.fit_percent, fit1.fit_percent - basis.fit0
-        trial.estimation_cost_drop, trial.threshold = basis.cost0 - cost1, thr
-        trial.parameters, trial.seconds = values, time.perf_counter() - t0
+        cand.judge_refit(trial, eff, fit1, cost1, c.n_added, basis, retried)
+        trial.seconds = time.perf_counter() - t0
         refits[eff] = (fit1, c)
 
     # round 1: the best-screened member of each of the leading families (distinct hypotheses first: a
