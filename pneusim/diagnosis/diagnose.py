@@ -205,12 +205,13 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
         say(f"the nominal fit ends {rms_ratio:.3g} times above noise (more than {MODEL_SHORT:g}): every candidate "
             "is screened from the data sheet")
         start = mismatch_window(nominal, recording, noise, WINDOW_SAMPLES)
-        trials, variants, ranked = screen_from_data_sheet(recording, rig_used, candidates, validation_fraction,
-                                                          signatures, _family, say, start)
+        trials, variants, ranked, window = screen_from_data_sheet(recording, rig_used, candidates,
+                                                                  validation_fraction, signatures, _family, say,
+                                                                  start)
         t_screen = time.perf_counter() - t_started
         say("screening from the data sheet ranks " + ", ".join(f"{k} ({variants[k][0]:.0f})" for k in ranked[:5]))
         confirm_from_data_sheet(recording, rig_used, ranked, variants, trials, refits, basis, _family, max_refits,
-                                max_lookalikes, say, second_only)
+                                max_lookalikes, say, second_only, window.normalised_residual)
     else:
         # ---- near noise: likelihood gain of each candidate from the nominal optimum, the leaders refitted warm
         trials, variants, ranked, base_cost = screen_around_nominal(nominal, recording, candidates, noise, signatures,

@@ -356,14 +356,15 @@ def test_transport_delay_recovered_between_samples(tmp_path):
 
 
 def _confirm_with_stand_in_fits(monkeypatch, ranked: list, outcome: dict, retried: dict | None = None,
-                                window: dict | None = None, second_only: dict | None = None) -> list:
+                                window: dict | None = None, second_only: dict | None = None,
+                                window_nominal_rms: float = math.inf, starts: dict | None = None) -> list:
     """Run :func:`confirm_from_data_sheet` on ``ranked`` effects (all screened with a positive score) with
     stand-in whole fits: ``outcome[effect] = (estimation rms in noise units, validation fit %)``, and
     ``retried[effect]`` the same for a refit warm from the nominal fit; the keep test keeps a fit that
     beats the nominal one's (rms 30, fit 0 %); ``window[effect]``: its pre-fit's rms on the window (noise
     units; unknown when not given).  Returns the effects fitted, in order (a warm refit as
     ``"EFFECT from the nominal fit"``), and the trials; ``second_only`` gets those left to the screening
-    on top."""
+    on top, and ``starts[effect]`` the nominal start values its whole fit was given."""
     from types import SimpleNamespace
 
     from pneusim.diagnosis import candidates as cand
@@ -376,6 +377,7 @@ def _confirm_with_stand_in_fits(monkeypatch, ranked: list, outcome: dict, retrie
 
     def fake_fit(recording, rig, effects, **options):
         fitted.append(effects[0].name)
+        (starts if starts is not None else {})[effects[0].name] = options.get("start_values")
         rms, fit = outcome[effects[0].name]
         return SimpleNamespace(rms=rms, fit_percent=fit)
 
@@ -392,13 +394,13 @@ def _confirm_with_stand_in_fits(monkeypatch, ranked: list, outcome: dict, retrie
     variants, trials = {}, {}
     for i, name in enumerate(ranked):
         c = cand.Candidate(name, name, make_effect(name), [])
-        variants[name] = (1000.0 - i, c, SimpleNamespace(estimates={},
+        variants[name] = (1000.0 - i, c, SimpleNamespace(estimates={"moving_mass_kg": 1.65},
                                                          normalised_residual=(window or {}).get(name, math.nan)))
         trials[name] = CandidateTrial(name, 1000.0 - i, "", status="not refitted")
     nominal = SimpleNamespace(rms=30.0, fit_percent=0.0)
     basis = cold.NominalBaseline({"position_m": 1.0}, 30.0 ** 2 * n, n, 0.0, 0.2, 0.3, nominal)
     cold.confirm_from_data_sheet(None, None, ranked, variants, trials, {}, basis, _family, max_refits=3,
-                                 max_lookalikes=2, second_only=second_only)
+                                 max_lookalikes=2, second_only=second_only, window_nominal_rms=window_nominal_rms)
     return fitted, trials
 
 
@@ -459,6 +461,24 @@ def test_candidate_outclassed_on_the_window_is_left_to_the_screening_on_top(monk
         monkeypatch, ["valve_deadband", "leakage", "heat_transfer", "valve_dynamics", "valve_offset"], outcome,
         window=window, second_only=second_only)
     assert "valve_dynamics" in fitted and not second_only
+
+
+def test_whole_fit_starts_from_the_data_sheet_where_the_pre_fit_explained_little(monkeypatch):
+    """A whole fit from the data sheet starts from its pre-fit's nominal values only where that pre-fit
+    explained the window (its residual rms within PREFIT_START of the nominal model's there); else from the
+    data sheet with the effect's pre-fitted values (practice2_16: the asymmetry's pre-fit at 13.5 times the
+    noise against the nominal 13.6, a mass of 1.65 kg against 0.84 kg true; its whole fit from there ended
+    at 87.1 %, from the data sheet at 99.46 %)."""
+    from pneusim.diagnosis import cold
+
+    starts = {}
+    _confirm_with_stand_in_fits(
+        monkeypatch, ["friction_asymmetry", "valve_offset"],
+        {"friction_asymmetry": (20.0, 50.0), "valve_offset": (25.0, 20.0)},
+        window={"friction_asymmetry": 13.5, "valve_offset": 4.0}, window_nominal_rms=13.6, starts=starts)
+    assert starts["friction_asymmetry"] is None
+    assert starts["valve_offset"] == {"moving_mass_kg": 1.65}
+    assert 4.0 <= cold.PREFIT_START * 13.6 < 13.5
 
 
 def _findings_on_top_with_stand_ins(monkeypatch, explained: dict, second_only: tuple = ()):
