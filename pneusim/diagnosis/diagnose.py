@@ -334,8 +334,7 @@ def _add_findings(recording, rig, kept: list, refits: dict, trials: dict, findin
     findings.append(_finding(first, final, basis.fit0, trials[first]))
     pool = {eff: refits[eff][1] for eff in kept[1:]}
     pool.update(second_only or {})
-    scores: dict = {}
-    base_top = math.nan
+    scores: dict = {}   # {effect: (gain, score)} on top of the current findings, against base_top
     tried_on_top = 0
     while pool and len(findings) < max_findings:
         if tried_on_top >= ON_TOP_REFITS:
@@ -363,9 +362,9 @@ def _add_findings(recording, rig, kept: list, refits: dict, trials: dict, findin
                     except Exception as exc:  # noqa: BLE001
                         if not cand.is_solver_failure(exc):
                             raise
-                scores[eff] = (gain, gain - c.n_added * math.log(max(n_screen, 2)), base_top)
+                scores[eff] = (gain, gain - c.n_added * math.log(max(n_screen, 2)))
         eff = max(pool, key=lambda k: scores[k][1])
-        gain, score_top, base_top = scores[eff]
+        gain, score_top = scores[eff]
         if math.isfinite(gain) and not score_top > MIN_EXPLAINED * base_top:
             for rest in pool:
                 trials[rest].status += (f"; on top of {first}: screening explains {scores[rest][0]:.0f} of "
