@@ -345,7 +345,11 @@ def _add_findings(recording, rig, kept: list, refits: dict, trials: dict, findin
             break
         if not scores:
             # a refit on top costs as much as the first; screen first what each candidate still explains
-            # once the findings are in (look-alikes of the first usually explain nothing more)
+            # once the findings are in (look-alikes of the first usually explain nothing more).  From the
+            # findings' own cost, not from where the same steps take it without a candidate (as around the
+            # nominal optimum, cand.polished_costs): a first finding far from noise gains much from those
+            # steps alone, and in a few steps a true second effect may not get past them (practice2_09, a
+            # load and friction asymmetry: the steps alone take 581 of 3653, the asymmetry 650 with them)
             try:
                 base_top = cand.screen(final, recording, None, basis.noise, screen_samples)["cost"]
             except Exception as exc:  # noqa: BLE001

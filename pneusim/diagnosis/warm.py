@@ -5,7 +5,8 @@ noise, its parameters are close to the rig's and the missing physics is what the
 Every candidate (each variant of an effect: a leak's path, a delay of the scan) is switched on at a
 small value beside the nominal fit's parameters and states, and a few trust-region steps on the
 first :data:`~.candidates.SCREEN_SAMPLES` estimation samples (:func:`.candidates.screen`) measure
-how much of the residual it explains: its score is that likelihood gain less ``k ln N``
+how much of the residual it explains beyond what the same steps take without it
+(:func:`.candidates.polished_costs`): its score is that likelihood gain less ``k ln N``
 (:func:`screen_around_nominal`).  The leading candidates, one per look-alike family, then get a
 whole refit warm from the nominal fit (:func:`confirm_around_nominal`) and are kept by the test of
 :func:`.candidates.passes_test`.  Far above noise the nominal parameters have bent to make up for the
@@ -35,19 +36,23 @@ def screen_around_nominal(nominal, recording, candidates, noise: dict, signature
                           n_screen: int):
     """Screen every candidate from the nominal optimum; returns ``(trials, variants, ranked, base_cost)``.
 
+    A candidate's gain is its cost after the screening's steps below the cost the same steps reach
+    without it (:func:`.candidates.polished_costs`).
+
     ``variants``: ``{effect: (score, candidate, screening)}`` for the best-scoring variant of each
     effect, the screened delays refined to the best one (:func:`.delay.refine_from_screening`);
     ``trials``: a :class:`CandidateTrial` per effect with the evidence; ``ranked``: the effects by
-    score; ``base_cost``: the nominal model's cost on the screening window.  ``n_screen`` is the
-    residual count of the window (the ``ln N`` of the score).  A candidate that cannot be integrated
-    has a score of minus infinity and says why in its trial."""
+    score; ``base_cost``: the nominal model's cost on the screening window after those steps.
+    ``n_screen`` is the residual count of the window (the ``ln N`` of the score).  A candidate that
+    cannot be integrated has a score of minus infinity and says why in its trial."""
     base = cand.screen(nominal, recording, None, noise, screen_samples)
+    polished = cand.polished_costs(nominal, recording, noise, screen_samples)
     variants: dict[str, tuple[float, cand.Candidate, dict]] = {}
     delay_scan = []
     for c in candidates:
         try:
             s = cand.screen(nominal, recording, c, noise, screen_samples)
-            gain = base["cost"] - s["cost"]
+            gain = polished[cand.screen_evaluations(c)] - s["cost"]
         except Exception as exc:  # noqa: BLE001 - a candidate that cannot be integrated is reported, not raised
             if not cand.is_solver_failure(exc):
                 raise
@@ -67,14 +72,16 @@ def screen_around_nominal(nominal, recording, candidates, noise: dict, signature
     for eff, (score, c, s) in variants.items():
         evidence = evidence_text(eff, signatures)
         if math.isfinite(score):
+            steps = cand.screen_evaluations(c)
             evidence += (f"; screening: switching it on ({c.label}) explains "
                          f"{score + c.n_added * math.log(max(n_screen, 2)):.0f} of the normalised residual sum "
-                         f"of squares {base['cost']:.0f}")
+                         f"of squares {base['cost']:.0f}, beyond the {base['cost'] - polished[steps]:.0f} that "
+                         f"the same {steps} steps take without it")
         trials[eff] = CandidateTrial(eff, score, evidence,
                                      status="screening failed: " + s["error"] if "error" in s else "not refitted",
                                      parameters=dict(s.get("parameters", {})), seconds=s.get("seconds"))
     ranked = sorted(variants, key=lambda k: -variants[k][0])
-    return trials, variants, ranked, base["cost"]
+    return trials, variants, ranked, min(polished.values())
 
 
 def confirm_around_nominal(recording, rig, ranked: list, variants: dict, trials: dict, refits: dict, basis,
