@@ -31,7 +31,7 @@ from . import candidates as cand
 from .result import CandidateTrial
 from .signatures import evidence_text
 
-__all__ = ["NominalBaseline", "screen_from_data_sheet", "confirm_from_data_sheet", "WINDOW_SAMPLES"]
+__all__ = ["NominalBaseline", "screen_from_data_sheet", "confirm_from_data_sheet", "data_sheet_start", "WINDOW_SAMPLES"]
 
 #: samples of the window every candidate is pre-fitted on (the fit's own pre-fit window)
 WINDOW_SAMPLES = 2000
@@ -71,7 +71,7 @@ class NominalBaseline(NamedTuple):
     fit: object = None
 
 
-def _start_values(rig, candidate) -> dict | None:
+def data_sheet_start(rig, candidate) -> dict | None:
     """Nominal parameters a candidate starts from (its ``start_scale`` on the data sheet's values)."""
     if not candidate.start_scale:
         return None
@@ -152,7 +152,7 @@ def screen_from_data_sheet(recording, rig, candidates, validation_fraction: floa
         if explained_by is not None and c.name not in family(explained_by):
             continue
         try:
-            pre = prefit_recording(recording, rig, [c.effect], start_values=_start_values(rig, c), **options)
+            pre = prefit_recording(recording, rig, [c.effect], start_values=data_sheet_start(rig, c), **options)
             score = n_window * math.log(base.cost / max(pre.cost, 1e-300)) - c.n_added * math.log(n_window)
         except Exception as exc:  # noqa: BLE001 - a candidate that cannot be integrated is reported, not raised
             if not cand.is_solver_failure(exc):

@@ -30,7 +30,8 @@ from ..errors import FitError, PneusimError
 from ..fit import fit_recording
 from ..fit.stages import MODEL_SHORT
 from ..fit.threads import one_blas_thread
-from .cold import WINDOW_SAMPLES, NominalBaseline, confirm_from_data_sheet, mismatch_window, screen_from_data_sheet
+from .cold import (WINDOW_SAMPLES, NominalBaseline, confirm_from_data_sheet, data_sheet_start, mismatch_window,
+                   screen_from_data_sheet)
 from .delay import scan_with_refits
 from ..recording import Recording, read_recording
 from ..rig import Rig, load_rig
@@ -397,6 +398,13 @@ def _add_findings(recording, rig, kept: list, refits: dict, trials: dict, findin
                                            fit2.fit_percent, basis.floor)
         screened = (f" (screening explains {gain:.0f} of {base_top:.0f} there)" if math.isfinite(gain) else "")
         trials[eff].status += f"; on top of {first}{screened}: {reason}"
+        if not ok and math.sqrt(c_prev / max(basis.n_residuals, 1)) > MODEL_SHORT:
+            cold = _on_top_from_data_sheet(recording, rig, final, c, basis, trials[eff], say)
+            if cold is not None:
+                fit2, c2 = cold
+                ok, thr, reason = cand.passes_test(c_prev, c2, basis.n_residuals, c.n_added, final.fit_percent,
+                                                   fit2.fit_percent, basis.floor)
+                trials[eff].status += f"; both fitted from the data sheet: {reason}"
         if ok:
             previous = final
             ok, final = _second_effect_needed(recording, rig, final, c_prev, fit2, c2, eff, c.n_added, findings,
@@ -408,6 +416,33 @@ def _add_findings(recording, rig, kept: list, refits: dict, trials: dict, findin
             findings.append(_finding(eff, fit2, final.fit_percent, trials[eff]))
             final = fit2
     return final
+
+
+def _on_top_from_data_sheet(recording, rig, final, c, basis: NominalBaseline, trial, say):
+    """Fit the findings so far (``final``'s effects, at their fitted values) and candidate ``c`` (at its own
+    start) together from the data sheet; returns ``(fit, estimation cost)``, or None when the fit fails.
+
+    Why: used where the findings' fit still ends more than :data:`~pneusim.fit.stages.MODEL_SHORT` times
+    above the noise and the refit on top of it failed the test.  Its nominal parameters have then bent to
+    make up for the physics still missing, as the nominal fit's had (see :mod:`.cold`), and a refit warm from
+    them stays in their basin (``practice2_21``, paper 2, an external leak and friction 2.96 times higher
+    retracting: the leak's fit at 10.9 times the noise, the asymmetry refitted on top from there ended at a
+    factor of 0.95 or 1.36, by its start, and failed the test; both from the data sheet: 97.1 % against the
+    leak's 91.9 %)."""
+    say(f"refit with {', '.join(e.name for e in final.effects_)} and {c.name} from the data sheet")
+    started = time.perf_counter()
+    try:
+        fit2 = fit_recording(recording, rig, list(final.effects_) + [c.effect],
+                             validation_fraction=basis.validation_fraction, starts=1, quiet=True,
+                             start_values=data_sheet_start(rig, c))
+    except Exception as exc:  # noqa: BLE001 - a failed fit is reported in the result
+        if not cand.is_solver_failure(exc):
+            raise
+        trial.status += f"; both fitted from the data sheet: failed: {exc}"
+        return None
+    finally:
+        trial.seconds = (trial.seconds or 0.0) + time.perf_counter() - started
+    return fit2, cand.estimation_cost(fit2, basis.noise)[0]
 
 
 def _second_effect_needed(recording, rig, final, cost_final: float, fit2, cost2: float, eff: str, n_added: int,
