@@ -45,7 +45,7 @@ import numpy as np
 
 from ..errors import PneusimError, SolverError
 from ..fit import EFFECT_FREE, fit_recording, noise_std_estimate
-from ..fit.fitter import warm_states
+from ..fit.warm_start import warm_states
 from ..fit.parameters import SEARCHED, parameter_bounds, parameter_scale
 from ..fit.shooting import FitData, ShootingProblem
 from ..fit import stages as _stages

@@ -38,7 +38,6 @@ from __future__ import annotations
 import logging
 import sys
 import time
-from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -56,8 +55,9 @@ from .shooting import FitData, ShootingProblem, position_reading
 from .stages import MODEL_SHORT, PENALTY_WEIGHT, full_fit, polish, prefit, trust_region, well_above
 from .threads import one_blas_thread
 from .uncertainty import covariance
+from .warm_start import check_warm_start, warm_parameters, warm_states
 
-__all__ = ["fit_recording", "prefit_recording", "PrefitResult", "noise_std_estimate"]
+__all__ = ["fit_recording", "noise_std_estimate"]
 
 _LOG = logging.getLogger("pneusim.fit")
 
@@ -335,7 +335,7 @@ class _Setup:
         p_nominal = model.param_vector(rig)
         p_start = p_nominal.copy()
         if warm_start is not None:
-            p_start = _warm_parameters(warm_start, model, p_start)
+            p_start = warm_parameters(warm_start, model, p_start)
         for name, value in (start_values or {}).items():
             if name not in model.param_names:
                 raise FitError(f"start_values: unknown parameter {name!r}; the model has: "
@@ -355,7 +355,7 @@ class _Setup:
                            "validate on the rest (at least 100 estimation and 20 validation samples)")
         _check_excitation(recording, rig, n_est, self.sigma["position_m"])
         if warm_start is not None:
-            _check_warm_start(warm_start, recording, n_est)
+            check_warm_start(warm_start, recording, n_est)
         self.seg = max(10, int(segment_samples))
 
     def window(self, stop: int) -> FitData:
@@ -372,77 +372,6 @@ class _Setup:
         lo = np.concatenate([self.lower, np.tile(x_lo / pb.x_scale, pb.n_segments)])
         hi = np.concatenate([self.upper, np.tile(x_hi / pb.x_scale, pb.n_segments)])
         return pb, lo, hi
-
-
-@dataclass
-class PrefitResult:
-    """The pre-fit alone (:func:`prefit_recording`): how far a model gets on a short window.
-
-    Attributes
-    ----------
-    cost : float
-        Residual sum of squares on the window in sensor-noise units (continuity defects not included).
-    n_residuals : int
-    normalised_residual : float
-        ``sqrt(cost / n_residuals)`` (1 is the noise level).
-    estimates : dict
-        ``{parameter name: value}`` of the free parameters at the end (SI units).
-    samples : int
-        Length of the window, samples.
-    seconds : float
-    """
-
-    cost: float
-    n_residuals: int
-    normalised_residual: float
-    estimates: dict
-    samples: int
-    seconds: float
-
-
-@one_blas_thread
-def prefit_recording(recording: Recording, rig: Rig | str | None = None, effects: Sequence[Effect] = (),
-                     free: Sequence[str] | None = None, *, samples: int = 2000, start_values: dict | None = None,
-                     validation_fraction: float | None = None, segment_samples: int = 50, rtol: float = 1e-6,
-                     threads: int = 2, second_route: bool | None = None, max_evaluations: int = 80,
-                     start: int = 0) -> PrefitResult:
-    """The first stage of :func:`fit_recording` alone: the pre-fit from the rig's values (or
-    ``start_values``) on the first ``samples`` samples of the estimation part, with ``effects`` on.
-
-    A cheap way to ask how well a model *can* explain the start of a recording from the data sheet,
-    without the whole fit: diagnosis ranks candidate effects this way where the nominal fit ends far
-    above noise (:mod:`pneusim.diagnosis.cold`).  ``second_route`` and ``max_evaluations`` as in
-    :func:`.stages.prefit`.  ``start``: the window begins at this sample of the estimation part instead
-    of its first (the recording's estimation/validation split stays where ``validation_fraction`` puts
-    it).  Raises :class:`FitError` like :func:`fit_recording`.
-    """
-    started = time.perf_counter()
-    if start > 0:
-        n = recording.n_samples
-        split = int(round(n * (1.0 - (DEFAULT_VALIDATION_FRACTION if validation_fraction is None
-                                      else validation_fraction))))
-        if not 0 < start < split - 100:
-            raise FitError(f"{_name(recording)}: a pre-fit window from sample {start} leaves fewer than 100 samples "
-                           f"before the validation part (from sample {split})")
-        recording = recording.slice(recording.time_s[start], None)
-        validation_fraction = (n - split) / (n - start)
-    setup = _Setup(recording, rig, effects, free, validation_fraction, None, start_values, segment_samples)
-    pb, lo, hi = setup.problem(min(setup.n_est, int(samples)), rtol, threads)
-    try:
-        v0 = pb.join(setup.theta_start, initial_starts(pb, setup.theta_start, recording, pb.data.n_samples))
-        v, _, _ = prefit(pb, v0, lo, hi, second_route=second_route, max_evaluations=max_evaluations)
-        e = pb.evaluate(v, derivatives=False)
-        if not e["ok"]:
-            raise FitError(f"{_name(recording)}: the model could not be integrated at the pre-fit's end")
-        theta, _ = pb.split(v)
-        p = pb.params_of(theta)
-    finally:
-        pb.close()
-    cost = float(np.dot(e["r"], e["r"]))
-    n_res = int(e["r"].size)
-    return PrefitResult(cost, n_res, float(np.sqrt(cost / max(n_res, 1))),
-                        {name: float(p[i]) for name, i in zip(setup.free, setup.index)}, int(pb.data.n_samples),
-                        time.perf_counter() - started)
 
 
 class _Progress:
@@ -472,44 +401,6 @@ def _routes_text(info: dict) -> str:
                        for r in info["routes"])
     skipped = info["routes"][0].get("second_route_skipped")
     return f" (routes: {routes}; kept {info['route']}" + (f"; continuation not tried: {skipped})" if skipped else ")")
-
-
-def _check_warm_start(warm: FitResult, recording: Recording, n_est: int) -> None:
-    other = warm.recording
-    same = (other is not None and other.n_samples == recording.n_samples and warm.n_estimation == n_est
-            and np.array_equal(other.valve_cmd_V, recording.valve_cmd_V))
-    if not same or warm.estimation_states is None:
-        raise FitError(f"{_name(recording)}: warm_start must be a fit of this recording with the same "
-                       f"validation fraction ({n_est} estimation samples)")
-
-
-def _warm_parameters(warm: FitResult, model: ActuatorModel, p_start: np.ndarray) -> np.ndarray:
-    """``p_start`` with every parameter the warm fit's model has replaced by its fitted value."""
-    p = p_start.copy()
-    fitted = dict(zip(warm.model.param_names, np.asarray(warm.params_vector, float)))
-    for i, name in enumerate(model.param_names):
-        if name in fitted:
-            p[i] = fitted[name]
-    return p
-
-
-def warm_states(warm: FitResult, pb: ShootingProblem, params: np.ndarray, recording: Recording) -> np.ndarray:
-    """Segment start states from the warm fit's states at every estimation sample; the states its
-    model lacks from this model's equilibrium at that sample's position and command."""
-    model = pb.model
-    values = dict(zip(model.param_names, params))
-    shared = [(i, warm.model.state_names.index(s)) for i, s in enumerate(model.state_names)
-              if s in warm.model.state_names]
-    x_lo, x_hi = pb.state_bounds()
-    out = np.zeros((pb.n_segments, pb.n))
-    for j, k in enumerate(pb.starts):
-        old = warm.estimation_states[k]
-        x = model.initial_state(None, float(old[0]), float(recording.valve_cmd_V[k]), params=values,
-                                pressures_Pa=(float(old[2]), float(old[3])))
-        for i, i_old in shared:
-            x[i] = old[i_old]
-        out[j] = np.clip(x, x_lo, x_hi)
-    return out
 
 
 # ----------------------------------------------------------------- pieces
