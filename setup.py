@@ -43,10 +43,11 @@ def extensions():
     def solver_extension(name, cvode_library):
         return Extension(
             f"pneusim.solver.{name}", [f"pneusim/solver/{name}.pyx"],
-            include_dirs=[numpy.get_include(), os.environ.get("SUNDIALS_INCLUDEDIR", "/usr/include")],
+            include_dirs=[numpy.get_include(), os.environ.get("SUNDIALS_INCLUDEDIR", "/usr/include"), "pneusim/solver"],
             libraries=[cvode_library, "sundials_nvecserial"],
             define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
             extra_compile_args=["-g0"],
+            depends=["pneusim/solver/small_dense.h"],   # the Newton systems' solver: rebuild when it changes
         )
 
     # the online RLS of the real-time loop (pneusim.scenario.online.PaperRLS): plain C, no SUNDIALS

@@ -3,7 +3,8 @@
 """SUNDIALS CVODE driven from C on the CasADi-generated model, and the sample loop in C.
 
 * :class:`Integrator` owns one CVODE memory (BDF, Newton, SUNDIALS' serial
-  N_Vector, dense matrix and dense direct linear solver), created and driven
+  N_Vector and dense matrix, and a dense direct linear solver: SUNDIALS' dense
+  LU unrolled for small state counts, ``small_dense.h``), created and driven
   through the SUNDIALS C functions that ``scikits.odes`` declares (its
   ``c_cvode``, ``c_sundials``, ``c_nvector_serial``, ``c_sunmatrix`` and
   ``c_sunlinsol`` Cython declarations) and linked against the SUNDIALS library
@@ -39,6 +40,7 @@ from scikits.odes.sundials.c_sundials cimport (N_Vector, sunrealtype, SUNContext
                                                SUNMatDestroy, SUNLinSolFree)
 from scikits.odes.sundials.c_nvector_serial cimport N_VNew_Serial, N_VGetArrayPointer_Serial
 from scikits.odes.sundials.c_sunmatrix cimport SUNDenseMatrix, SUNDenseMatrix_Data
+from scikits.odes.sundials.c_sundials cimport sunindextype
 from scikits.odes.sundials.c_sunlinsol cimport SUNLinSol_Dense
 from scikits.odes.sundials.c_cvode cimport (CVodeCreate, CVodeInit, CVodeReInit, CVodeSVtolerances,
                                             CVodeSetUserData, CVodeSetErrHandlerFn, CVodeSetMaxNumSteps,
@@ -49,6 +51,11 @@ from scikits.odes.sundials.c_cvode cimport (CVodeCreate, CVodeInit, CVodeReInit,
                                             CVodeGetNumNonlinSolvConvFails, CVodeGetNumJacEvals)
 
 cnp.import_array()
+
+cdef extern from "small_dense.h":
+    # SUNDIALS' dense LU, unrolled for small state counts (see the header)
+    SUNLinearSolver SmallDenseLinearSolver(sunindextype n, SUNContext context)
+    SUNMatrix SmallDenseMatrix(sunindextype n, SUNContext context)
 
 ctypedef long long casadi_int
 ctypedef int (*casadi_fn)(const double** arg, double** res, casadi_int* iw, double* w, int mem) noexcept nogil
@@ -139,6 +146,10 @@ cdef class Integrator:
     atol : ndarray (n,)
     max_steps : int
         Internal steps allowed per call of :meth:`advance`.
+    linear_solver : str
+        ``"small-dense"`` (default): the Newton systems factored and solved by ``small_dense.h``;
+        ``"sundials-dense"``: by SUNDIALS' own dense solver (``SUNLinSol_Dense``), which computes the
+        same doubles more slowly, kept as the peer the tests and the benchmark compare with.
     """
     cdef Problem pb
     cdef SUNContext ctx
@@ -165,7 +176,8 @@ cdef class Integrator:
         self.pb.jac.iw = NULL
         self.pb.jac.w = NULL
 
-    def __init__(self, rhs, jac, double[::1] params, int n, double rtol, double[::1] atol, long max_steps=50000):
+    def __init__(self, rhs, jac, double[::1] params, int n, double rtol, double[::1] atol, long max_steps=50000,
+                 str linear_solver="small-dense"):
         cdef int i
         if atol.shape[0] != n:
             raise ValueError(f"{n} absolute tolerances expected, got {atol.shape[0]}")
@@ -193,8 +205,15 @@ cdef class Integrator:
         _check(CVodeSetUserData(self.mem, &self.pb), "CVodeSetUserData")
         _check(CVodeSetErrHandlerFn(self.mem, <CVErrHandlerFn> _error, &self.pb), "CVodeSetErrHandlerFn")
         _check(CVodeSetMaxNumSteps(self.mem, max_steps), "CVodeSetMaxNumSteps")
-        self.A = SUNDenseMatrix(n, n, self.ctx)
-        self.LS = SUNLinSol_Dense(self.y, self.A, self.ctx)
+        if linear_solver == "small-dense":
+            self.A = SmallDenseMatrix(n, self.ctx)
+            self.LS = SmallDenseLinearSolver(n, self.ctx)
+        elif linear_solver == "sundials-dense":
+            # SUNDIALS' own dense matrix and solver: the peer small_dense.h is checked against
+            self.A = SUNDenseMatrix(n, n, self.ctx)
+            self.LS = SUNLinSol_Dense(self.y, self.A, self.ctx)
+        else:
+            raise ValueError(f"linear_solver: 'small-dense' or 'sundials-dense', got {linear_solver!r}")
         if self.A == NULL or self.LS == NULL:
             raise MemoryError()
         _check(CVodeSetLinearSolver(self.mem, self.LS, self.A), "CVodeSetLinearSolver")

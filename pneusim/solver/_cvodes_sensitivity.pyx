@@ -61,8 +61,10 @@ cdef extern from "sunmatrix/sunmatrix_dense.h":
     SUNMatrix SUNDenseMatrix(sunindextype M, sunindextype N, SUNContext ctx)
     realtype* SUNDenseMatrix_Data(SUNMatrix A) nogil
 
-cdef extern from "sunlinsol/sunlinsol_dense.h":
-    SUNLinearSolver SUNLinSol_Dense(N_Vector y, SUNMatrix A, SUNContext ctx)
+cdef extern from "small_dense.h":
+    # SUNDIALS' dense LU, unrolled for small state counts (the same doubles; see the header)
+    SUNLinearSolver SmallDenseLinearSolver(sunindextype n, SUNContext context)
+    SUNMatrix SmallDenseMatrix(sunindextype n, SUNContext context)
 
 cdef extern from "cvodes/cvodes.h":
     enum: CV_BDF
@@ -114,6 +116,8 @@ cdef extern from "cvodes/cvodes_ls.h":
 # per-vector work on 11 sensitivity vectors of 4 states (dense back substitutions 9 %, fused vector
 # operations 15 %), the generated sensitivity kernel 4 %.  Fewer steps is what pays: rtol 1e-5 takes
 # 9.8 steps a sample and 0.99 s, 1e-4 6.3 steps and 0.87 s.
+# Since then the dense factor and solve (and the Newton matrix's copy and I - gamma J) are
+# small_dense.h's: the same doubles, the paper-2 benchmark fit 11.2 -> 9.3 s (stop 32).
 
 ctypedef long long casadi_int
 ctypedef int (*casadi_fn)(const double** arg, double** res, casadi_int* iw, double* w, int mem) noexcept nogil
@@ -274,8 +278,8 @@ cdef class SensitivityIntegrator:
         _check(CVodeSetUserData(self.mem, &self.pb), "CVodeSetUserData")
         _check(CVodeSetErrHandlerFn(self.mem, _error, &self.pb), "CVodeSetErrHandlerFn")
         _check(CVodeSetMaxNumSteps(self.mem, max_steps), "CVodeSetMaxNumSteps")
-        self.A = SUNDenseMatrix(n, n, self.ctx)
-        self.LS = SUNLinSol_Dense(self.y, self.A, self.ctx)
+        self.A = SmallDenseMatrix(n, self.ctx)
+        self.LS = SmallDenseLinearSolver(n, self.ctx)
         _check(CVodeSetLinearSolver(self.mem, self.LS, self.A), "CVodeSetLinearSolver")
         _check(CVodeSetJacFn(self.mem, _jac), "CVodeSetJacFn")
         self.sens_on = False
