@@ -46,8 +46,9 @@ def extensions():
             include_dirs=[numpy.get_include(), os.environ.get("SUNDIALS_INCLUDEDIR", "/usr/include"), "pneusim/solver"],
             libraries=[cvode_library, "sundials_nvecserial"],
             define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
-            extra_compile_args=["-g0"],
-            depends=["pneusim/solver/small_dense.h"],   # the Newton systems' solver: rebuild when it changes
+            # -ffp-contract=off: no fused multiply-adds, so that small_vector.h's a x + b y rounds as SUNDIALS' does
+            extra_compile_args=["-g0", "-ffp-contract=off"],
+            depends=["pneusim/solver/small_dense.h", "pneusim/solver/small_vector.h"],   # the Newton systems' solver: rebuild when it changes
         )
 
     # the online RLS of the real-time loop (pneusim.scenario.online.PaperRLS): plain C, no SUNDIALS

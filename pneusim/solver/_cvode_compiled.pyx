@@ -3,8 +3,10 @@
 """SUNDIALS CVODE driven from C on the CasADi-generated model, and the sample loop in C.
 
 * :class:`Integrator` owns one CVODE memory (BDF, Newton, SUNDIALS' serial
-  N_Vector and dense matrix, and a dense direct linear solver: SUNDIALS' dense
-  LU unrolled for small state counts, ``small_dense.h``), created and driven
+  N_Vector and dense matrix, and a dense direct linear solver, with the per-step
+  vector operations of ``small_vector.h`` and the dense LU and matrix operations of
+  ``small_dense.h``: SUNDIALS' arithmetic in one call each, unrolled for small
+  state counts, the same doubles at twice the speed), created and driven
   through the SUNDIALS C functions that ``scikits.odes`` declares (its
   ``c_cvode``, ``c_sundials``, ``c_nvector_serial``, ``c_sunmatrix`` and
   ``c_sunlinsol`` Cython declarations) and linked against the SUNDIALS library
@@ -56,6 +58,10 @@ cdef extern from "small_dense.h":
     # SUNDIALS' dense LU, unrolled for small state counts (see the header)
     SUNLinearSolver SmallDenseLinearSolver(sunindextype n, SUNContext context)
     SUNMatrix SmallDenseMatrix(sunindextype n, SUNContext context)
+
+cdef extern from "small_vector.h":
+    # SUNDIALS' serial vector with its per-step operations in one call each (the same doubles; see the header)
+    N_Vector SmallSerialVector(sunindextype n, SUNContext context)
 
 ctypedef long long casadi_int
 ctypedef int (*casadi_fn)(const double** arg, double** res, casadi_int* iw, double* w, int mem) noexcept nogil
@@ -146,10 +152,11 @@ cdef class Integrator:
     atol : ndarray (n,)
     max_steps : int
         Internal steps allowed per call of :meth:`advance`.
-    linear_solver : str
-        ``"small-dense"`` (default): the Newton systems factored and solved by ``small_dense.h``;
-        ``"sundials-dense"``: by SUNDIALS' own dense solver (``SUNLinSol_Dense``), which computes the
-        same doubles more slowly, kept as the peer the tests and the benchmark compare with.
+    linear_algebra : str
+        ``"small"`` (default): CVODE's vectors from ``small_vector.h`` and its Newton matrix and linear
+        solver from ``small_dense.h``; ``"sundials"``: SUNDIALS' own serial vector, dense matrix and
+        dense solver, which compute the same doubles about twice as slowly, kept as the peer the tests
+        and the benchmark compare with.
     """
     cdef Problem pb
     cdef SUNContext ctx
@@ -177,7 +184,7 @@ cdef class Integrator:
         self.pb.jac.w = NULL
 
     def __init__(self, rhs, jac, double[::1] params, int n, double rtol, double[::1] atol, long max_steps=50000,
-                 str linear_solver="small-dense"):
+                 str linear_algebra="small"):
         cdef int i
         if atol.shape[0] != n:
             raise ValueError(f"{n} absolute tolerances expected, got {atol.shape[0]}")
@@ -190,7 +197,10 @@ cdef class Integrator:
         _kernel_init(&self.pb.jac, jac, &self.pb.u, &params[0])
         if SUNContext_Create(NULL, &self.ctx) != 0:
             raise MemoryError("SUNContext_Create failed")
-        self.y = N_VNew_Serial(n, self.ctx)
+        if linear_algebra not in ("small", "sundials"):
+            raise ValueError(f"linear_algebra: 'small' or 'sundials', got {linear_algebra!r}")
+        small = linear_algebra == "small"
+        self.y = SmallSerialVector(n, self.ctx) if small else N_VNew_Serial(n, self.ctx)
         self.atol_v = N_VNew_Serial(n, self.ctx)
         if self.y == NULL or self.atol_v == NULL:
             raise MemoryError()
@@ -205,15 +215,13 @@ cdef class Integrator:
         _check(CVodeSetUserData(self.mem, &self.pb), "CVodeSetUserData")
         _check(CVodeSetErrHandlerFn(self.mem, <CVErrHandlerFn> _error, &self.pb), "CVodeSetErrHandlerFn")
         _check(CVodeSetMaxNumSteps(self.mem, max_steps), "CVodeSetMaxNumSteps")
-        if linear_solver == "small-dense":
+        if small:
             self.A = SmallDenseMatrix(n, self.ctx)
             self.LS = SmallDenseLinearSolver(n, self.ctx)
-        elif linear_solver == "sundials-dense":
+        else:
             # SUNDIALS' own dense matrix and solver: the peer small_dense.h is checked against
             self.A = SUNDenseMatrix(n, n, self.ctx)
             self.LS = SUNLinSol_Dense(self.y, self.A, self.ctx)
-        else:
-            raise ValueError(f"linear_solver: 'small-dense' or 'sundials-dense', got {linear_solver!r}")
         if self.A == NULL or self.LS == NULL:
             raise MemoryError()
         _check(CVodeSetLinearSolver(self.mem, self.LS, self.A), "CVodeSetLinearSolver")

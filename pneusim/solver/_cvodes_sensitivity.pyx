@@ -61,10 +61,17 @@ cdef extern from "sunmatrix/sunmatrix_dense.h":
     SUNMatrix SUNDenseMatrix(sunindextype M, sunindextype N, SUNContext ctx)
     realtype* SUNDenseMatrix_Data(SUNMatrix A) nogil
 
+cdef extern from "sunlinsol/sunlinsol_dense.h":
+    SUNLinearSolver SUNLinSol_Dense(N_Vector y, SUNMatrix A, SUNContext ctx)
+
 cdef extern from "small_dense.h":
     # SUNDIALS' dense LU, unrolled for small state counts (the same doubles; see the header)
     SUNLinearSolver SmallDenseLinearSolver(sunindextype n, SUNContext context)
     SUNMatrix SmallDenseMatrix(sunindextype n, SUNContext context)
+
+cdef extern from "small_vector.h":
+    # SUNDIALS' serial vector with its per-step and fused operations in one call each (the same doubles)
+    N_Vector SmallSerialVectorFused(sunindextype n, SUNContext context)
 
 cdef extern from "cvodes/cvodes.h":
     enum: CV_BDF
@@ -116,8 +123,9 @@ cdef extern from "cvodes/cvodes_ls.h":
 # per-vector work on 11 sensitivity vectors of 4 states (dense back substitutions 9 %, fused vector
 # operations 15 %), the generated sensitivity kernel 4 %.  Fewer steps is what pays: rtol 1e-5 takes
 # 9.8 steps a sample and 0.99 s, 1e-4 6.3 steps and 0.87 s.
-# Since then the dense factor and solve (and the Newton matrix's copy and I - gamma J) are
-# small_dense.h's: the same doubles, the paper-2 benchmark fit 11.2 -> 9.3 s (stop 32).
+# Since then the vector operations (fused ones included) are small_vector.h's and the dense factor,
+# solve, copy and I - gamma J small_dense.h's: the same doubles, the paper-2 benchmark fit 11.2 -> 9.3 s
+# with small_dense.h, -> 4.9 s with both (stop 32).
 
 ctypedef long long casadi_int
 ctypedef int (*casadi_fn)(const double** arg, double** res, casadi_int* iw, double* w, int mem) noexcept nogil
@@ -221,6 +229,10 @@ cdef class SensitivityIntegrator:
         Internal steps allowed per interval.
     sens_errcon : bool
         Include the sensitivities in the local error test (smaller steps, more accurate derivatives).
+    linear_algebra : str
+        ``"small"`` (default): vectors, Newton matrix and linear solver of ``small_dense.h`` and
+        ``small_vector.h``; ``"sundials"``: SUNDIALS' own serial vector (fused operations on), dense
+        matrix and dense solver, which compute the same doubles more slowly (the tests' peer).
     """
     cdef Problem pb
     cdef SUNContext ctx
@@ -239,7 +251,8 @@ cdef class SensitivityIntegrator:
         self.ctx = NULL
 
     def __init__(self, dict kernels, int n, int ns, double[::1] params, double[::1] weights,
-                 double rtol, double[::1] atol, long max_steps=50000, bint sens_errcon=False):
+                 double rtol, double[::1] atol, long max_steps=50000, bint sens_errcon=False,
+                 str linear_algebra="small"):
         cdef int i
         cdef Kernel* fixed[3]
         self.keep = (kernels, params, weights)   # the C side holds raw pointers into these
@@ -265,9 +278,15 @@ cdef class SensitivityIntegrator:
         self.pb.sens.res[0] = self.pb.s_out
         if SUNContext_Create(NULL, &self.ctx) != 0:
             raise MemoryError("SUNContext_Create failed")
-        self.y = N_VNew_Serial(n, self.ctx)
+        if linear_algebra not in ("small", "sundials"):
+            raise ValueError(f"linear_algebra: 'small' or 'sundials', got {linear_algebra!r}")
+        small = linear_algebra == "small"
         # fused vector operations: one call per array of sensitivity vectors instead of one per vector
-        N_VEnableFusedOps_Serial(self.y, 1)
+        if small:
+            self.y = SmallSerialVectorFused(n, self.ctx)
+        else:
+            self.y = N_VNew_Serial(n, self.ctx)
+            N_VEnableFusedOps_Serial(self.y, 1)
         self.atol = N_VNew_Serial(n, self.ctx)
         for i in range(n):
             N_VGetArrayPointer(self.atol)[i] = atol[i]
@@ -278,8 +297,8 @@ cdef class SensitivityIntegrator:
         _check(CVodeSetUserData(self.mem, &self.pb), "CVodeSetUserData")
         _check(CVodeSetErrHandlerFn(self.mem, _error, &self.pb), "CVodeSetErrHandlerFn")
         _check(CVodeSetMaxNumSteps(self.mem, max_steps), "CVodeSetMaxNumSteps")
-        self.A = SmallDenseMatrix(n, self.ctx)
-        self.LS = SmallDenseLinearSolver(n, self.ctx)
+        self.A = SmallDenseMatrix(n, self.ctx) if small else SUNDenseMatrix(n, n, self.ctx)
+        self.LS = SmallDenseLinearSolver(n, self.ctx) if small else SUNLinSol_Dense(self.y, self.A, self.ctx)
         _check(CVodeSetLinearSolver(self.mem, self.LS, self.A), "CVodeSetLinearSolver")
         _check(CVodeSetJacFn(self.mem, _jac), "CVodeSetJacFn")
         self.sens_on = False

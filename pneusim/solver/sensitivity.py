@@ -99,10 +99,14 @@ class SensitivitySimulator:
         Relative tolerance of the state; absolute tolerances ``rtol * state scale``.
     state_scale : ndarray (n,), optional
         Scale of the initial-state columns (default: the solver's state scales).
+    linear_algebra : str
+        ``"small"`` (default) or ``"sundials"``: CVODES's vectors, Newton matrix and linear solver from
+        ``small_vector.h``/``small_dense.h`` or SUNDIALS' own (the same doubles, slower; the tests' peer).
     """
 
     def __init__(self, model: ActuatorModel, free: Sequence[str], params: np.ndarray, scales: np.ndarray,
-                 stroke_m: float, rtol: float = 1e-6, state_scale: np.ndarray | None = None):
+                 stroke_m: float, rtol: float = 1e-6, state_scale: np.ndarray | None = None,
+                 linear_algebra: str = "small"):
         from . import _cvodes_sensitivity as fast
 
         self.model = model
@@ -119,7 +123,7 @@ class SensitivitySimulator:
         self._keep = kernels
         atol = np.ascontiguousarray(self.rtol * tolerance_scale)
         self._integrator = fast.SensitivityIntegrator(kernels, n, self.ns, self.params, self.weights,
-                                                      self.rtol, atol)
+                                                      self.rtol, atol, linear_algebra=linear_algebra)
         # S(t0) (n, ns): zero for the parameters, diag(x_scale) for the initial state
         self._s0 = np.zeros((n, self.ns))
         self._s0[:, self.n_free:] = np.diag(self.x_scale)

@@ -39,9 +39,10 @@ def test_cvode_converges_with_tolerance(rig1):
 
 
 @pytest.mark.parametrize("case", ["paper2-closed", "paper1-closed", "every-effect-open"])
-def test_small_dense_solver_gives_sundials_dense_results_to_the_last_bit(rig1, rig2, case):
-    """The Newton systems factored and solved by ``small_dense.h`` (the default) and by SUNDIALS' own
-    dense solver: every state at every sample and every solver counter equal, with pivoting in play
+def test_small_linear_algebra_gives_sundials_results_to_the_last_bit(rig1, rig2, case):
+    """CVODE with ``small_vector.h``'s vectors and ``small_dense.h``'s Newton matrix and solver (the
+    default) and with SUNDIALS' own serial vector, dense matrix and dense solver: every state at every
+    sample and every solver counter equal, with pivoting in play
     (a closed loop with stick-slip on both rigs) and with nine states, beyond the unrolled kernels
     (every effect on: the header's run-time-bound path)."""
     rig = rig1 if case.startswith("paper1") else rig2
@@ -51,7 +52,7 @@ def test_small_dense_solver_gives_sundials_dense_results_to_the_last_bit(rig1, r
     effects = [make_effect(name) for name in EFFECTS] if case.startswith("every") else []
     exp = standard_experiment(rig, kind, duration, loop, seed=3)
     ours = simulate(rig, exp, effects, noise_scale=0)
-    sundials = simulate(rig, exp, effects, noise_scale=0, backend="cvode-sundials-dense")
+    sundials = simulate(rig, exp, effects, noise_scale=0, backend="cvode-sundials")
     assert ours.states.shape[1] == (9 if effects else 4)
     assert np.ptp(ours.state("position_m")) > 0.01                 # the run moves
     assert ours.solver_stats == sundials.solver_stats
