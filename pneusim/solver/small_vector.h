@@ -32,11 +32,10 @@ static void small_vector_linear_sum(sunrealtype a, N_Vector x, sunrealtype b, N_
   const sunindextype n = SMALL_VECTOR_LENGTH(x);
   const sunrealtype *xd = SMALL_VECTOR_DATA(x), *yd = SMALL_VECTOR_DATA(y);
   sunrealtype *zd = SMALL_VECTOR_DATA(z);
-  if (a == 1.0 || a == -1.0 || b == 1.0 || b == -1.0) {
-    for (sunindextype i = 0; i < n; i++) zd[i] = a * xd[i] + b * yd[i];
-  } else if (a == b) {
+  const int unit = (a == 1.0 || a == -1.0 || b == 1.0 || b == -1.0);
+  if (!unit && a == b) {
     for (sunindextype i = 0; i < n; i++) zd[i] = a * (xd[i] + yd[i]);
-  } else if (a == -b) {
+  } else if (!unit && a == -b) {
     for (sunindextype i = 0; i < n; i++) zd[i] = a * (xd[i] - yd[i]);
   } else {
     for (sunindextype i = 0; i < n; i++) zd[i] = a * xd[i] + b * yd[i];
@@ -157,21 +156,10 @@ static int small_vector_scale_add_multi_array(int nvec, int nsum, sunrealtype *a
 }
 
 static int small_vector_linear_combination_array(int nvec, int nsum, sunrealtype *c, N_Vector **X, N_Vector *Z) {
+  N_Vector column[nsum];   /* X[0][j], X[1][j], ...: the terms of Z[j] (nsum is the BDF order + 1 or so) */
   for (int j = 0; j < nvec; j++) {
-    if (nsum == 1) {
-      small_vector_scale(c[0], X[0][j], Z[j]);
-    } else if (nsum == 2) {
-      small_vector_linear_sum(c[0], X[0][j], c[1], X[1][j], Z[j]);
-    } else {
-      const sunindextype n = SMALL_VECTOR_LENGTH(Z[j]);
-      sunrealtype *zd = SMALL_VECTOR_DATA(Z[j]);
-      const sunrealtype *xd = SMALL_VECTOR_DATA(X[0][j]);
-      for (sunindextype k = 0; k < n; k++) zd[k] = c[0] * xd[k];
-      for (int i = 1; i < nsum; i++) {
-        xd = SMALL_VECTOR_DATA(X[i][j]);
-        for (sunindextype k = 0; k < n; k++) zd[k] += c[i] * xd[k];
-      }
-    }
+    for (int i = 0; i < nsum; i++) column[i] = X[i][j];
+    small_vector_linear_combination(nsum, c, column, Z[j]);
   }
   return 0;
 }
