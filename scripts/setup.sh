@@ -23,8 +23,8 @@ if [ ! -x .venv/bin/python ]; then
   "$python" -m venv .venv
 fi
 stamp=.venv/.pneusim-installed
-# reinstall when the packaging or a compiled extension changed
-want="$(cat pyproject.toml setup.py pneusim/solver/*.pyx | sha256sum | cut -d' ' -f1)"
+# reinstall when the packaging or a compiled extension (its .pyx or a C header it includes) changed
+want="$(cat pyproject.toml setup.py pneusim/*/*.pyx pneusim/*/*.h | sha256sum | cut -d' ' -f1)"
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   echo "setup: installing pneusim and its dependencies into .venv"
   .venv/bin/python -m pip install -q --upgrade pip wheel setuptools
