@@ -54,7 +54,11 @@ absorb a missing effect: a dead-band recording's nominal pre-fit ends at 1.20 ti
 above it, which diagnosis's screening and the fit's "model lacks physics" rule rely on.  (3) Searching
 the start states of the segments above noise at the fitted parameters (random perturbations, then the
 trust region): ``s1026`` from 1.08 to 0.994 at the truth, but from fits tens of percent off only 1-10 %
-of the residual: there the parameters' basin is the cause, not the states.  Without pressures the data
+of the residual: there the parameters' basin is the cause, not the states.  (4) A scan of the valve
+conductance over 0.6-1.6 times the data sheet before the pre-fit, by the window's residual from
+:func:`~pneusim.fit.initial.initial_starts` (on five closed-loop recordings without pressures its minimum
+lies within 0.05 of the true factor, and ``s1017`` reaches noise from the true conductance alone): the
+fit still ends at 4.03 on ``s1017``, and ``s1021`` went from 1.01 to 5.13.  Without pressures the data
 sheet's friction starts the model oscillating where the recording creeps (or the reverse), and the fit
 settles where a larger smoothing velocity damps the spurious oscillation (5-8 times the truth).
 """
