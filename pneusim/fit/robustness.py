@@ -45,13 +45,16 @@ samples below 1 mm/s), so a segment's residual depends on the phase of that osci
 true parameters such a fit can stop above noise: started from the measured states, ``s1026`` (steps,
 pressures recorded) ends at 1.08 after the trust region, two segments at 5 and 3 times noise in a
 spurious stick-slip that a pressure sample's noise starts in the nearly empty chamber A; from the true
-states it ends at 0.994.  Tried and not adopted: (1) starting each segment from the measured or the
-carried state, whichever fits its samples (at the truth 1.02 before the trust region, 0.994 after; from
-the data sheet without pressures it moved two paper-1 recordings from noise to 1.34 and 1.90); (2) with
-pressures, 10-sample segments in the pre-fit: ``s1026`` ends at 1.03 with 7 of 7 truths within 3 sigma
-and the set's recordings with pressures at 22/24 against 21/24, but short segments with free starts
-absorb a missing effect: a dead-band recording's nominal pre-fit ends at 1.20 times noise instead of far
-above it, which diagnosis's screening and the fit's "model lacks physics" rule rely on.  (3) Searching
+states it ends at 0.994.  Adopted: where both pressures are recorded and the pre-fit ends above noise,
+a route through 10-sample segments (:data:`~pneusim.fit.fitter.SHORT_SEGMENTS`), then the pre-fit's
+own problem from its parameters with each segment starting from the measured or the carried state
+(:func:`~pneusim.fit.initial.initial_starts`' ``choose_starts``), kept when clearly lower on that same
+problem: ``s1026`` ends at 1.03 with 7 of 7 truths within 3 sigma (the set's recordings with pressures:
+22/24 against 21/24).  Tried and not adopted: (1) the choice of segment starts everywhere (from the data
+sheet without pressures it moved two paper-1 recordings from noise to 1.34 and 1.90); (2) 10-sample
+segments as the pre-fit itself: short segments with free starts absorb a missing effect (a dead-band
+recording's nominal pre-fit ends at 1.20 times noise instead of far above it, which diagnosis's
+screening and the fit's "model lacks physics" rule rely on).  (3) Searching
 the start states of the segments above noise at the fitted parameters (random perturbations, then the
 trust region): ``s1026`` from 1.08 to 0.994 at the truth, but from fits tens of percent off only 1-10 %
 of the residual: there the parameters' basin is the cause, not the states.  (4) A scan of the valve
