@@ -10,8 +10,8 @@
    window, from the rig file's values, by trust-region least squares with the
    continuity between segments as a weighted residual; where that ends above noise and both
    pressures are recorded, also with the weight raised in turn, keeping the better route
-   (:func:`.stages.prefit`), and through :data:`SHORT_SEGMENTS`-sample segments, kept when the
-   pre-fit's own problem from there ends clearly lower (:func:`_short_segments_route`);
+   (:func:`.stages.prefit`), and through :data:`.stages.SHORT_SEGMENTS`-sample segments, kept when the
+   pre-fit's own problem from there ends clearly lower (:func:`.stages.short_segments_route`);
 4. **fit** — the whole estimation part from the pre-fit: trust region (where
    that ends above noise and well above the pre-fit, also with the continuity weight raised in turn:
    :func:`.stages.full_fit`), then IPOPT (:mod:`.nlp`) on the exact constrained problem; a fit that
@@ -53,7 +53,8 @@ from .parameters import DEFAULT_FREE, EFFECT_FREE, SEARCHED, check_free, paramet
 from .initial import better_first_state, initial_starts
 from .result import ABOVE_NOISE_WARNING, FitResult, ParameterEstimate
 from .shooting import FitData, ShootingProblem, position_reading
-from .stages import CLEARLY_BETTER, MODEL_SHORT, PENALTY_WEIGHT, full_fit, polish, prefit, trust_region, well_above
+from .stages import (MODEL_SHORT, PENALTY_WEIGHT, SHORT_SEGMENTS, full_fit, polish, prefit, short_segments_route,
+                     trust_region, well_above)
 from .threads import one_blas_thread
 from .uncertainty import covariance
 from .warm_start import check_warm_start, warm_parameters, warm_states
@@ -70,18 +71,6 @@ _START_FACTORS = (
     {"valve_sonic_conductance_m3_per_s_Pa": 1.6, "friction_static_N": 1.8, "friction_coulomb_N": 1.8,
      "friction_viscous_N_s_per_m": 0.5, "moving_mass_kg": 0.7},
 )
-
-#: samples per segment of the pre-fit's short-segment route (:func:`_short_segments_route`), tried where both
-#: pressures are recorded and the pre-fit ends above noise but at most MODEL_SHORT times it.  Why: paper-2
-#: open-loop pistons stick-slip from sample to sample through every slow motion, and over 50 samples a
-#: segment's residual depends on the phase of that oscillation; with the pressures measured only the
-#: velocity of a short segment's start is unknown, and 10 samples pin the valve and friction parameters
-#: (the robustness set's ``s1026``: its pre-fit's parameters within 0.3 % of the truth, where the 50-sample
-#: pre-fit left the friction tens of percent off and the fit at 2.11 times noise; now 1.03).  Judged on the
-#: 50-sample problem, not on its own residual: short segments with free starts also absorb a missing
-#: effect (a dead-band recording's nominal pre-fit ends at 1.20 times noise on them against more than 1.5),
-#: and the pre-fit's residual is what says that the model lacks physics.
-SHORT_SEGMENTS = 10
 
 #: a restart's pre-fit ending within this relative distance of an earlier start's is the same basin:
 #: practice2_30's three pre-fits ended within 4.5e-4 of each other and all three fits at 1.63-1.64;
@@ -242,8 +231,13 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
                     "not fitted again")
                 continue
             if recording.has_pressures and ABOVE_NOISE_WARNING < rms_pre <= MODEL_SHORT:
-                v_pre, rms_pre = _short_segments_route(problem, pre_pb, pre_lo, pre_hi, theta0, v_pre, rms_pre,
-                                                       recording, attempts[-1], say)
+                v_pre, rms_pre, route = short_segments_route(problem(pre_pb.data.n_samples, SHORT_SEGMENTS), pre_pb,
+                                                             pre_lo, pre_hi, theta0, v_pre, rms_pre, recording)
+                attempts[-1]["short_segments"] = route
+                say(f"short segments ({SHORT_SEGMENTS} samples): pre-fit {route['rms_short_normalised']:.3g}, then "
+                    f"{route['rms_normalised']:.3g} on the pre-fit's segments against "
+                    f"{attempts[-1]['rms_normalised']:.3g}: {'kept' if route['kept'] else 'not kept'} "
+                    f"({route['seconds']:.1f} s)")
             theta0, prefit_states = pre_pb.split(v_pre)
             x_init = initial_starts(pb, theta0, recording, n_est)
             fresh_first = x_init[0].copy()
@@ -324,31 +318,6 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         f"residual {result.normalised_residual:.3g} (noise level 1)"
         + ("" if result.converged_to_noise else " -- ABOVE NOISE, see the warnings"))
     return result
-
-
-def _short_segments_route(problem, pre_pb, pre_lo, pre_hi, theta0, v_pre, rms_pre, recording, attempt, say):
-    """The pre-fit's route through :data:`SHORT_SEGMENTS`-sample segments, for a recording with both
-    pressures whose pre-fit ended above noise but not so far that the model lacks physics: the pre-fit on
-    short segments from the same start ``theta0``, then the pre-fit's own problem from its parameters
-    with each segment starting from the measured or the carried state (:func:`.initial.initial_starts`'s
-    ``choose_starts``).  Kept when that ends :data:`.stages.CLEARLY_BETTER` times below ``rms_pre`` on the
-    same problem.  Returns ``(v, rms)`` of the pre-fit's problem and notes the route in ``attempt``."""
-    started = time.perf_counter()
-    short_pb, short_lo, short_hi = problem(pre_pb.data.n_samples, SHORT_SEGMENTS)
-    try:
-        v = short_pb.join(theta0, initial_starts(short_pb, theta0, recording, short_pb.data.n_samples))
-        v, rms_short, _ = prefit(short_pb, v, short_lo, short_hi)
-        theta_short, _ = short_pb.split(v)
-    finally:
-        short_pb.close()
-    starts = initial_starts(pre_pb, theta_short, recording, pre_pb.data.n_samples, choose_starts=True)
-    v, rms, _ = prefit(pre_pb, pre_pb.join(theta_short, starts), pre_lo, pre_hi)
-    kept = bool(rms * CLEARLY_BETTER < rms_pre)
-    attempt["short_segments"] = {"rms_short_normalised": rms_short, "rms_normalised": rms, "kept": kept,
-                                 "seconds": time.perf_counter() - started}
-    say(f"short segments ({SHORT_SEGMENTS} samples): pre-fit {rms_short:.3g}, then {rms:.3g} on the pre-fit's "
-        f"segments against {rms_pre:.3g}: {'kept' if kept else 'not kept'} ({time.perf_counter() - started:.1f} s)")
-    return (v, rms) if kept else (v_pre, rms_pre)
 
 
 class _Setup:

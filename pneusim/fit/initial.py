@@ -26,7 +26,7 @@ def initial_starts(pb: ShootingProblem, theta0, recording: Recording, stop: int,
     stick-slip the fit cannot leave: on a paper-2 open-loop recording at its true parameters the measured
     starts put two segments at 5.2 and 2.9 times noise and the whole part at 1.08 after the trust region;
     with the choice it ends at 0.994, as from the true states.  Only where the parameters are already
-    close (:data:`~pneusim.fit.fitter.SHORT_SEGMENTS`' route): from the data sheet, and without pressures,
+    close (:data:`~pneusim.fit.stages.SHORT_SEGMENTS`' route): from the data sheet, and without pressures,
     the carried state drifts off the samples (two paper-1 recordings without pressures went from noise
     to 1.34 and 1.90 times it)."""
     ts = recording.sample_time_s

@@ -46,7 +46,7 @@ true parameters such a fit can stop above noise: started from the measured state
 pressures recorded) ends at 1.08 after the trust region, two segments at 5 and 3 times noise in a
 spurious stick-slip that a pressure sample's noise starts in the nearly empty chamber A; from the true
 states it ends at 0.994.  Adopted: where both pressures are recorded and the pre-fit ends above noise,
-a route through 10-sample segments (:data:`~pneusim.fit.fitter.SHORT_SEGMENTS`), then the pre-fit's
+a route through 10-sample segments (:data:`~pneusim.fit.stages.SHORT_SEGMENTS`), then the pre-fit's
 own problem from its parameters with each segment starting from the measured or the carried state
 (:func:`~pneusim.fit.initial.initial_starts`' ``choose_starts``), kept when clearly lower on that same
 problem: ``s1026`` ends at 1.03 with 7 of 7 truths within 3 sigma (the set's recordings with pressures:

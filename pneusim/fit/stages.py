@@ -17,12 +17,13 @@ import time
 import numpy as np
 
 from ..errors import FitError
+from .initial import initial_starts
 from .nlp import solve_ipopt
 from .result import ABOVE_NOISE_WARNING
 from .shooting import ShootingProblem
 
 __all__ = ["trust_region", "continuation", "two_routes", "well_above", "prefit", "full_fit", "polish",
-           "PREFIT_DEFECT_WEIGHTS", "FIT_DEFECT_WEIGHTS"]
+           "short_segments_route", "PREFIT_DEFECT_WEIGHTS", "FIT_DEFECT_WEIGHTS", "SHORT_SEGMENTS"]
 
 #: continuity weights of the pre-fit's second route, in turn (see :func:`continuation`)
 PREFIT_DEFECT_WEIGHTS = (10.0, 1000.0)
@@ -35,6 +36,18 @@ FIT_DEFECT_WEIGHTS = (10.0, 1000.0, PENALTY_WEIGHT)
 CLEARLY_BETTER = 1.25
 #: a pre-fit this many times above noise says the model lacks physics (see :func:`full_fit`)
 MODEL_SHORT = 5.0
+#: samples per segment of the pre-fit's short-segment route (:func:`short_segments_route`), tried where both
+#: pressures are recorded and the pre-fit ends above noise but at most MODEL_SHORT times it.  Why: paper-2
+#: open-loop pistons stick-slip from sample to sample through every slow motion, and over 50 samples a
+#: segment's residual depends on the phase of that oscillation; with the pressures measured only the
+#: velocity of a short segment's start is unknown, and 10 samples pin the valve and friction parameters
+#: (the robustness set's ``s1026``: its pre-fit's parameters within 0.3 % of the truth, where the 50-sample
+#: pre-fit left the friction tens of percent off and the fit at 2.11 times noise; now 1.03).  Judged on the
+#: 50-sample problem, not on its own residual: short segments with free starts also absorb a missing
+#: effect (a dead-band recording's nominal pre-fit ends at 1.20 times noise on them against more than 1.5),
+#: and the pre-fit's residual is what says that the model lacks physics.
+SHORT_SEGMENTS = 10
+
 #: the constrained IPOPT run is kept within 10 % of the trust region's residual sum (:func:`polish`)
 KEEP_CONSTRAINED = 1.1
 #: ... and given up once this many iterates in a row have an objective above this many times the
@@ -209,6 +222,33 @@ def prefit(pb: ShootingProblem, v0, lower, upper, second_route: bool | None = No
         second_route = {"pressure_a_Pa", "pressure_b_Pa"} <= set(pb.data.signals)
     return two_routes(pb, v0, lower, upper, PREFIT_DEFECT_WEIGHTS, second_route=second_route,
                       max_evaluations=max_evaluations)
+
+
+def short_segments_route(short, pb: ShootingProblem, lower, upper, theta0, v, rms, recording):
+    """The pre-fit's route through :data:`SHORT_SEGMENTS`-sample segments, for a recording with both
+    pressures whose pre-fit (``v``, normalised residual ``rms`` on problem ``pb``) ended above noise but not so
+    far that the model lacks physics: :func:`prefit` on ``short = (problem, lower, upper)`` (the same window
+    in short segments) from the same start ``theta0``, then :func:`prefit` on ``pb`` from its parameters
+    with each segment starting from the measured or the carried state (:func:`.initial.initial_starts`'
+    ``choose_starts``).  Kept when that ends :data:`CLEARLY_BETTER` times below ``rms`` on the same problem.
+
+    Returns ``(v, rms, info)``: the kept point and residual on ``pb``, and ``info`` with the short pre-fit's
+    residual, the route's residual on ``pb``, whether it was kept and its seconds.
+    """
+    started = time.perf_counter()
+    short_pb, short_lo, short_hi = short
+    try:
+        v_short = short_pb.join(theta0, initial_starts(short_pb, theta0, recording, short_pb.data.n_samples))
+        v_short, rms_short, _ = prefit(short_pb, v_short, short_lo, short_hi)
+        theta_short, _ = short_pb.split(v_short)
+    finally:
+        short_pb.close()
+    starts = initial_starts(pb, theta_short, recording, pb.data.n_samples, choose_starts=True)
+    v_route, rms_route, _ = prefit(pb, pb.join(theta_short, starts), lower, upper)
+    kept = bool(rms_route * CLEARLY_BETTER < rms)
+    info = {"rms_short_normalised": rms_short, "rms_normalised": rms_route, "kept": kept,
+            "seconds": time.perf_counter() - started}
+    return (v_route, rms_route, info) if kept else (v, rms, info)
 
 
 def full_fit(pb: ShootingProblem, v0, lower, upper, prefit_rms: float, finish=None):
