@@ -186,6 +186,26 @@ def test_recording_starting_mid_stick_slip_with_stops_reaches_noise():
 
 
 @pytest.mark.minutes
+@pytest.mark.xfail(strict=True, reason="open (issue 9): the recording is chaotic; from its true parameters the "
+                   "pre-fit's direct route stops at 1.55 and the fit at 1.65 times noise")
+def test_fit_started_at_the_truth_of_a_chaotic_open_loop_recording_stays_at_noise():
+    """Paper 2, open-loop multisine without pressures (``s1007`` of the robustness set), started at its eight
+    true values.  The piston stick-slips from sample to sample, and at the truth the segments started from
+    the chained simulation leave the recorded slip pattern within seconds (their own samples at 3-20 times
+    noise from the ninth segment on).  The pre-fit's continuation route from those starts, or each
+    segment's hidden states searched afresh, reach 0.85-0.87 on the window.  But the pre-fit without
+    pressures takes the direct route only, and that stops at 1.55.  Strict: the day it passes, this mark
+    must go."""
+    spec = next(s for s in robustness_cases(48) if s.seed == 1007)
+    assert (spec.rig_name, spec.kind, spec.loop, spec.pressures) == ("paper2-enfield", "multisine", "open", False)
+    rig, truth, rec = make_case(spec)
+    result = fit_recording(rec, rig, free=fit_free(True), quiet=True, start_values=truth)
+    s = score(result, truth)
+    assert result.converged_to_noise, (result.normalised_residuals, result.solver["prefit_attempts"])
+    assert s["inside_3_sigma"] >= s["parameters"] - 1, s["z"]
+
+
+@pytest.mark.minutes
 def test_open_loop_stick_slip_with_pressures_takes_the_short_segment_route():
     """Paper 2, open-loop steps with both pressures (``s1026`` of the robustness set): the piston
     stick-slips from sample to sample through slow motion.  The 50-sample pre-fit ends above noise with the
