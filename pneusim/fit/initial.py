@@ -36,8 +36,7 @@ def initial_starts(pb: ShootingProblem, theta0, recording: Recording, stop: int,
     model = pb.model
     x = model.initial_state(None, float(recording.position_m[0]),
                             float(recording.valve_cmd_V[0]), params=dict(zip(model.param_names, params)))
-    sim = pb.sims[0]
-    sim.set_params(params)
+    pb.sims[0].set_params(params)
     starts = np.zeros((pb.n_segments, pb.n))
     measured = {name: values for name, (values, _) in pb.data.signals.items()}
     choose = choose_starts and {"pressure_a_Pa", "pressure_b_Pa"} <= set(measured)
@@ -53,18 +52,26 @@ def initial_starts(pb: ShootingProblem, theta0, recording: Recording, stop: int,
         if j == 0:
             x = _hidden_state(pb, j, x, params, grid=True)
         candidates = [x, carried] if choose and j > 0 else [x]
-        best = None
-        for candidate in candidates:
-            try:
-                xs, _ = sim.run(pb.data.time_s[k], candidate, pb.schedules[j], pb.stops[j] - k + 1, False)
-            except PneusimError:
-                xs = None
-            cost = _cost(pb, j, xs) if len(candidates) > 1 else 0.0
-            if best is None or cost < best[0]:
-                best = (cost, candidate, xs)
-        _, starts[j], xs = best
+        starts[j], xs = _best_start(pb, j, candidates)
         x = xs[-1] if xs is not None else starts[j]
     return starts
+
+
+def _best_start(pb: ShootingProblem, j: int, candidates):
+    """``(state, states)``: of candidate start states of segment ``j``, the first whose simulation by
+    ``pb.sims[0]`` (at the parameters last set on it) fits the segment's samples best, and that
+    simulation (None where it failed)."""
+    best = None
+    for candidate in candidates:
+        try:
+            xs, _ = pb.sims[0].run(pb.data.time_s[pb.starts[j]], candidate, pb.schedules[j],
+                                   pb.stops[j] - pb.starts[j] + 1, False)
+        except PneusimError:
+            xs = None
+        cost = _cost(pb, j, xs)
+        if best is None or cost < best[0]:
+            best = (cost, candidate, xs)
+    return best[1], best[2]
 
 
 def _segment_residuals(pb: ShootingProblem, j: int, x: np.ndarray, sensitivities: bool = False):
@@ -109,15 +116,7 @@ def better_first_state(pb: ShootingProblem, theta, states) -> np.ndarray:
     times noise over the whole fit).  The fitter offers the pre-fit's own first state and one
     estimated afresh at the pre-fit's parameters."""
     pb.sims[0].set_params(pb.params_of(theta))
-
-    def cost(x):
-        try:
-            r, _ = _segment_residuals(pb, 0, x)
-        except PneusimError:
-            return np.inf
-        return float(np.dot(r, r))
-
-    return np.asarray(min(states, key=cost), float).copy()
+    return np.asarray(_best_start(pb, 0, [np.asarray(x, float) for x in states])[0], float).copy()
 
 
 #: interior pressures per chamber of the grid the first state's search starts from, and how many of the
