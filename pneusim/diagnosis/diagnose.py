@@ -28,13 +28,14 @@ import numpy as np
 
 from ..errors import FitError, PneusimError
 from ..fit import fit_recording
+from ..fit.setup import rig_of
 from ..fit.stages import MODEL_SHORT
 from ..fit.threads import one_blas_thread
 from .cold import (WINDOW_SAMPLES, NominalBaseline, confirm_from_data_sheet, data_sheet_start, mismatch_window,
                    screen_from_data_sheet)
 from .delay import scan_with_refits
 from ..recording import Recording, read_recording
-from ..rig import Rig, load_rig
+from ..rig import Rig
 from . import candidates as cand
 from .locate import locate_mismatch
 from .result import CandidateTrial, DiagnosisResult, Finding
@@ -68,14 +69,7 @@ def _progress(enabled, message):
 def _load(recording, rig) -> tuple[Recording, Rig]:
     if not isinstance(recording, Recording):
         recording = read_recording(recording)
-    name = str(recording.source or "recording")
-    if rig is None:
-        if not recording.rig:
-            raise PneusimError(f"{name} names no rig in its metadata ('# rig: ...'); give --rig")
-        rig = recording.rig
-    if not isinstance(rig, Rig):
-        rig = load_rig(rig)
-    return recording, rig
+    return recording, rig_of(recording, rig)
 
 
 def _check_input(recording: Recording, rig: Rig, validation_fraction: float) -> int:

@@ -5,7 +5,8 @@ estimates, standard errors, correlations, identifiability warnings and a
 validation fit on data the optimiser never saw.
 """
 
-from .fitter import fit_recording, noise_std_estimate
+from .fitter import fit_recording
+from .setup import noise_std_estimate
 from .prefit import PrefitResult, prefit_recording
 from .parameters import DEFAULT_FREE, EFFECT_FREE
 from .result import FitResult, ParameterEstimate

@@ -19,6 +19,11 @@
    from the next start (the best kept; a start whose pre-fit ends where an earlier one's did is not
    fitted again), unless the pre-fit itself ends more than
    :data:`.stages.MODEL_SHORT` times above noise (the model lacks physics there);
+   Where the best fit still ends above noise and not every pre-fit ended more than
+   :data:`.stages.MODEL_SHORT` times above it: every segment started from the state an extended
+   Kalman filter tracks at that fit's parameters (:mod:`.tracking`), the trust region with the
+   continuity weight raised in turn, then IPOPT, kept when lower (:func:`.stages.tracked_route`;
+   ``solver["tracked_route"]``);
 5. **uncertainty** — the Gauss-Newton covariance of the estimates with the
    segment states as nuisance parameters, each signal weighted by its residual
    standard deviation (:mod:`.uncertainty`); standard errors, correlations and
@@ -45,21 +50,21 @@ import numpy as np
 
 from ..errors import FitError
 from ..metrics import fit_percent
-from ..model import ActuatorModel, Effect
+from ..model import Effect
 from ..recording import Recording
-from ..rig import Rig, load_rig
+from ..rig import Rig
 from ..solver.sensitivity import command_schedule
-from .parameters import DEFAULT_FREE, EFFECT_FREE, SEARCHED, check_free, parameter_bounds, parameter_scale
 from .initial import better_first_state, initial_starts
 from .result import ABOVE_NOISE_WARNING, FitResult, ParameterEstimate
-from .shooting import FitData, ShootingProblem, position_reading
+from .setup import FitSetup, _name
+from .shooting import ShootingProblem, position_reading
 from .stages import (MODEL_SHORT, PENALTY_WEIGHT, SHORT_SEGMENTS, full_fit, polish, prefit, short_segments_route,
-                     trust_region, well_above)
+                     tracked_route, trust_region, well_above)
 from .threads import one_blas_thread
 from .uncertainty import covariance
-from .warm_start import check_warm_start, warm_parameters, warm_states
+from .warm_start import warm_states
 
-__all__ = ["fit_recording", "noise_std_estimate"]
+__all__ = ["fit_recording"]
 
 _LOG = logging.getLogger("pneusim.fit")
 
@@ -76,22 +81,6 @@ _START_FACTORS = (
 #: practice2_30's three pre-fits ended within 4.5e-4 of each other and all three fits at 1.63-1.64;
 #: a paper-1 recording's first two 0.9 % apart (2.700, 2.725) had fits at 4.29 and 3.10
 SAME_PREFIT = 1e-3
-
-
-def noise_std_estimate(values: np.ndarray) -> float:
-    """Sensor noise from the data: robust std of second differences, ``MAD / 0.6745 / sqrt(6)``.
-
-    The second difference of white noise has variance ``6 sigma^2``; the
-    median ignores the samples where the true signal accelerates.
-    """
-    d2 = np.diff(np.asarray(values, float)[np.isfinite(values)], 2)
-    if d2.size < 10:
-        return 0.0
-    return float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / np.sqrt(6.0))
-
-
-#: final fraction of a recording kept for validation unless told otherwise
-DEFAULT_VALIDATION_FRACTION = 0.3
 
 
 @one_blas_thread
@@ -168,7 +157,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
     if validation_fraction is None and warm_start is not None:
         # the warm fit's split: round(n * (n_est / n)) gives back n_est exactly
         validation_fraction = 1.0 - warm_start.n_estimation / recording.n_samples
-    setup = _Setup(recording, rig, effects, free, validation_fraction, warm_start, start_values, segment_samples)
+    setup = FitSetup(recording, rig, effects, free, validation_fraction, warm_start, start_values, segment_samples)
     rig, model, free, delay_s = setup.rig, setup.model, setup.free, setup.delay_s
     p_start, index, scales, bounds = setup.p_start, setup.index, setup.scales, setup.bounds
     lower, upper, theta_start, n_est, seg = setup.lower, setup.upper, setup.theta_start, setup.n_est, setup.seg
@@ -279,6 +268,24 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
                 break
         pre_pb.close()
     res = min(fits, key=lambda f: (f[0], f[1]))[2]
+    rms_best = _normalised_rms(pb, res)
+    tracked = None
+    if (warm_start is None and np.isfinite(rms_best) and rms_best > ABOVE_NOISE_WARNING
+            and min(a["rms_normalised"] for a in attempts) <= MODEL_SHORT):
+        # the fit ended above noise where not every pre-fit said the model lacks physics: segment starts
+        # tracked by a Kalman filter at its parameters, for a recording too chaotic for chained starts
+        v_t, rms_t, tracked = tracked_route(pb, res.v, lo, hi, rms_best)
+        if tracked["improved"]:
+            done = polish(pb, v_t, lo, hi, max_iter, rtol, penalty=PENALTY_WEIGHT)
+            tracked["finished_rms_normalised"] = _normalised_rms(pb, done)
+            tracked["kept"] = bool(np.isfinite(done.objective) and done.objective < res.objective)
+            if tracked["kept"]:
+                done.iterations += res.iterations
+                done.seconds += res.seconds
+                res = done
+        say("tracked starts: " + ", ".join(f"{r['rms_normalised']:.3g}" for r in tracked["rounds"])
+            + (f", IPOPT {tracked['finished_rms_normalised']:.3g}" if "finished_rms_normalised" in tracked else "")
+            + f" against {rms_best:.3g}: {'kept' if tracked.get('kept') else 'not kept'} ({tracked['seconds']:.1f} s)")
     if not np.isfinite(res.objective):
         pb.close()
         raise FitError(f"{_name(recording)}: the model could not be integrated at the optimiser's last point "
@@ -310,7 +317,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
                                        "iterations": res.iterations,
                                        "seconds": time.perf_counter() - started, "ipopt_seconds": res.seconds,
                                        "max_defect": res.max_defect, "defect_sum_squares": defect_sum_squares,
-                                       "prefit_attempts": attempts,
+                                       "prefit_attempts": attempts, "tracked_route": tracked,
                                        "formulation": res.formulation, "warm_start": warm_start is not None,
                                        "segments": int(pb.n_segments), "segment_samples": seg},
         estimation_states=uncertainty["states"])
@@ -318,70 +325,6 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         f"residual {result.normalised_residual:.3g} (noise level 1)"
         + ("" if result.converged_to_noise else " -- ABOVE NOISE, see the warnings"))
     return result
-
-
-class _Setup:
-    """What every fit of a recording needs before the optimiser runs: the checks, the model, the free
-    parameters with their scales and bounds, the starting values, the measured signals and their
-    noise, and the estimation part; :meth:`problem` builds the shooting problem of a window."""
-
-    def __init__(self, recording: Recording, rig, effects, free, validation_fraction, warm_start, start_values,
-                 segment_samples):
-        self.recording = recording
-        self.rig = rig = _resolve_rig(recording, rig)
-        self.model = model = ActuatorModel(effects)
-        self.delay_s = model.command_delay_s()
-        self.free = free = list(free) if free else _default_free(model)
-        check_free(free, model.param_names)
-        searched = [name for name in free if name in SEARCHED]
-        if searched:
-            raise FitError(f"--free {searched[0]}: a transport delay moves the command switch times and has no "
-                           "gradient; fix it with --effect transport_delay:delay_s=VALUE and compare the fits over a "
-                           "few fixed delays")
-        if validation_fraction is None:
-            validation_fraction = DEFAULT_VALIDATION_FRACTION
-        if not 0.0 < validation_fraction <= 0.9:
-            raise FitError(f"validation_fraction must be in (0, 0.9], got {validation_fraction}")
-        p_nominal = model.param_vector(rig)
-        p_start = p_nominal.copy()
-        if warm_start is not None:
-            p_start = warm_parameters(warm_start, model, p_start)
-        for name, value in (start_values or {}).items():
-            if name not in model.param_names:
-                raise FitError(f"start_values: unknown parameter {name!r}; the model has: "
-                               f"{', '.join(model.param_names)}")
-            p_start[model.param_names.index(name)] = float(value)
-        self.p_start = p_start
-        self.index = index = [model.param_names.index(name) for name in free]
-        self.scales = np.array([parameter_scale(name, p_nominal[i]) for name, i in zip(free, index)])
-        self.bounds = np.array([parameter_bounds(name, p_nominal[i]) for name, i in zip(free, index)])
-        self.lower, self.upper = self.bounds[:, 0] / self.scales, self.bounds[:, 1] / self.scales
-        self.theta_start = np.clip(p_start[index] / self.scales, self.lower, self.upper)
-        self.signals, self.sigma = _signals(recording, rig, model)
-        n = recording.n_samples
-        self.n_est = n_est = int(round(n * (1.0 - validation_fraction)))
-        if n_est < 100 or n - n_est < 20:
-            raise FitError(f"{_name(recording)}: {n} samples are too few to fit on {1 - validation_fraction:.0%} and "
-                           "validate on the rest (at least 100 estimation and 20 validation samples)")
-        _check_excitation(recording, rig, n_est, self.sigma["position_m"])
-        if warm_start is not None:
-            check_warm_start(warm_start, recording, n_est)
-        self.seg = max(10, int(segment_samples))
-
-    def window(self, stop: int) -> FitData:
-        rec = self.recording
-        return FitData(rec.time_s[:stop], rec.valve_cmd_V[:stop], float(rec.valve_cmd_V[0]),
-                       {k: (v[:stop], self.sigma[k]) for k, v in self.signals.items()})
-
-    def problem(self, stop: int, rtol: float, threads: int, segment: int | None = None):
-        """``(problem, lower, upper)``: the shooting problem of the first ``stop`` samples (segments of
-        ``segment`` samples, default the fit's) and the bounds of its decision variables."""
-        pb = ShootingProblem(self.model, self.p_start, self.free, self.scales, self.window(stop), self.rig.stroke_m,
-                             segment or self.seg, self.delay_s, rtol, threads)
-        x_lo, x_hi = pb.state_bounds()
-        lo = np.concatenate([self.lower, np.tile(x_lo / pb.x_scale, pb.n_segments)])
-        hi = np.concatenate([self.upper, np.tile(x_hi / pb.x_scale, pb.n_segments)])
-        return pb, lo, hi
 
 
 class _Progress:
@@ -411,71 +354,6 @@ def _routes_text(info: dict) -> str:
                        for r in info["routes"])
     skipped = info["routes"][0].get("second_route_skipped")
     return f" (routes: {routes}; kept {info['route']}" + (f"; continuation not tried: {skipped})" if skipped else ")")
-
-
-# ----------------------------------------------------------------- pieces
-def _name(recording: Recording) -> str:
-    return str(recording.source or "the recording")
-
-
-def _resolve_rig(recording: Recording, rig) -> Rig:
-    if rig is None:
-        if not recording.rig:
-            raise FitError(f"{_name(recording)} names no rig in its metadata ('# rig: ...'); give --rig")
-        rig = recording.rig
-    if not isinstance(rig, Rig):
-        rig = load_rig(rig)
-    # a recording may name another rig than the file given (a user's own copy of a data sheet): the
-    # physical checks below decide whether they match, not the names
-    if abs(recording.sample_time_s - rig.sample_time_s) > 1e-9 * rig.sample_time_s:
-        rig = rig.with_params({"sample_time_s": recording.sample_time_s})
-    stroke = rig.stroke_m
-    pos = recording.position_m
-    if np.nanmin(pos) < -0.01 * stroke or np.nanmax(pos) > 1.01 * stroke:
-        raise FitError(f"{_name(recording)}: positions span {np.nanmin(pos) * 1e3:.1f} to {np.nanmax(pos) * 1e3:.1f} mm "
-                       f"but rig {rig.name!r} has a stroke of {stroke * 1e3:.1f} mm; is this the right rig?")
-    supply = rig.params["supply_Pa"]
-    for name in ("pressure_a_Pa", "pressure_b_Pa"):
-        values = getattr(recording, name)
-        if values is not None and np.nanmax(values) > 1.2 * supply:
-            raise FitError(f"{_name(recording)}: {name} reaches {np.nanmax(values) / 1e5:.2f} bar, above rig "
-                           f"{rig.name!r}'s supply of {supply / 1e5:.2f} bar (absolute); is this the right rig?")
-    return rig
-
-
-def _default_free(model: ActuatorModel) -> list[str]:
-    names = list(DEFAULT_FREE)
-    for effect in model.effects:
-        names += [n for n in EFFECT_FREE.get(effect.name, ()) if n not in SEARCHED]
-    return names
-
-
-def _signals(recording: Recording, rig: Rig, model: ActuatorModel):
-    """Measured signals by state name, and the noise std used to weight each."""
-    signals = {"position_m": recording.position_m}
-    if recording.has_pressures:
-        signals["pressure_a_Pa"] = recording.pressure_a_Pa
-        signals["pressure_b_Pa"] = recording.pressure_b_Pa
-    sigma = {}
-    for name, values in signals.items():
-        # the rig file's sensor noise when it states one, else an estimate from the data
-        from_rig = float(rig.params.get("position_noise_std_m" if name == "position_m" else "pressure_noise_std_Pa", 0.0))
-        floor = rig.stroke_m * 1e-5 if name == "position_m" else 20.0
-        sigma[name] = max(from_rig if from_rig > 0 else noise_std_estimate(values), floor)
-    return signals, sigma
-
-
-def _check_excitation(recording: Recording, rig: Rig, n_est: int, sigma_position: float) -> None:
-    pos = recording.position_m[:n_est]
-    span = float(np.nanmax(pos) - np.nanmin(pos))
-    if span < 50 * sigma_position:
-        raise FitError(f"{_name(recording)}: the piston moves only {span * 1e3:.3f} mm in the estimation part "
-                       f"({50 * sigma_position * 1e3:.3f} mm needed, 50 times the sensor noise); such a recording "
-                       "does not excite the friction, mass and valve parameters")
-    cmd = recording.valve_cmd_V[:n_est]
-    if np.ptp(cmd) == 0.0:
-        raise FitError(f"{_name(recording)}: the valve command is constant in the estimation part; "
-                       "nothing excites the valve parameters")
 
 
 def _validate(model, params, recording: Recording, n_est: int, x0, delay_s, stroke_m, rtol) -> dict:

@@ -13,7 +13,7 @@ from ..errors import FitError
 from ..model import Effect
 from ..recording import Recording
 from ..rig import Rig
-from .fitter import DEFAULT_VALIDATION_FRACTION, _name, _Setup
+from .setup import DEFAULT_VALIDATION_FRACTION, FitSetup, _name
 from .initial import initial_starts
 from .stages import prefit
 from .threads import one_blas_thread
@@ -73,7 +73,7 @@ def prefit_recording(recording: Recording, rig: Rig | str | None = None, effects
                            f"before the validation part (from sample {split})")
         recording = recording.slice(recording.time_s[start], None)
         validation_fraction = (n - split) / (n - start)
-    setup = _Setup(recording, rig, effects, free, validation_fraction, None, start_values, segment_samples)
+    setup = FitSetup(recording, rig, effects, free, validation_fraction, None, start_values, segment_samples)
     pb, lo, hi = setup.problem(min(setup.n_est, int(samples)), rtol, threads)
     try:
         v0 = pb.join(setup.theta_start, initial_starts(pb, setup.theta_start, recording, pb.data.n_samples))

@@ -127,6 +127,7 @@ class ShootingProblem:
                  segment_samples: int, delay_s: float = 0.0, rtol: float = 1e-6, threads: int = 2):
         self.model, self.free, self.data = model, list(free), data
         self.stroke_m = float(stroke_m)
+        self.delay_s = float(delay_s)
         self.position_index = model.state_names.index("position_m")
         self.params = np.asarray(params, float).copy()
         self.scales = np.asarray(scales, float)
