@@ -19,7 +19,7 @@
    from the next start (the best kept; a start whose pre-fit ends where an earlier one's did is not
    fitted again), unless the pre-fit itself ends more than
    :data:`.stages.MODEL_SHORT` times above noise (the model lacks physics there);
-   Where the best fit still ends above noise and not every pre-fit ended more than
+   where the best fit still ends above noise, but neither it nor every pre-fit more than
    :data:`.stages.MODEL_SHORT` times above it: every segment started from the state an extended
    Kalman filter tracks at that fit's parameters (:mod:`.tracking`), the trust region with the
    continuity weight raised in turn, then IPOPT, kept when lower (:func:`.stages.tracked_route`;
