@@ -167,6 +167,12 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         return setup.problem(stop, rtol, threads, segment)
 
     pb, lo, hi = problem(n_est)
+
+    def finish(v):
+        """IPOPT on the whole estimation part from ``v``: ``(result, normalised rms)``."""
+        done = polish(pb, v, lo, hi, max_iter, rtol, penalty=PENALTY_WEIGHT)
+        return done, _normalised_rms(pb, done)
+
     attempts, fits = [], []
     if warm_start is not None:
         # a refit: no pre-fit, no alternative starts; trust region and IPOPT from the warm point
@@ -234,10 +240,6 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
                 if first in pre_pb.starts and first < pre_pb.starts[-1]:
                     x_init[j] = prefit_states[list(pre_pb.starts).index(first)]
             x_init[0] = better_first_state(pb, theta0, [x_init[0], fresh_first])
-            def finish(v):
-                done = polish(pb, v, lo, hi, max_iter, rtol, penalty=PENALTY_WEIGHT)
-                return done, _normalised_rms(pb, done)
-
             v_ls, rms_ls, info = full_fit(pb, pb.join(theta0, x_init), lo, hi, rms_pre, finish=finish)
             say(f"start {k + 1}, fit ({n_est} samples): trust region {info['status']} after {info['evaluations']} "
                 f"evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_ls:.3g}" + _routes_text(info))
@@ -277,18 +279,15 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         # for chained starts.  (The nominal fits of practice2's 30 recordings: tried on 8, 3-57 s each, kept
         # on a control with nothing missing, 1.75 -> 1.49, and on one at 5.49 -> 5.489; two of the eight,
         # at 5.49 and 5.94, more than MODEL_SHORT above noise, are no longer tried.)
-        v_t, rms_t, tracked = tracked_route(pb, res.v, lo, hi, rms_best)
-        if tracked["improved"]:
-            done = polish(pb, v_t, lo, hi, max_iter, rtol, penalty=PENALTY_WEIGHT)
-            tracked["finished_rms_normalised"] = _normalised_rms(pb, done)
-            tracked["kept"] = bool(np.isfinite(done.objective) and done.objective < res.objective)
-            if tracked["kept"]:
-                done.iterations += res.iterations
-                done.seconds += res.seconds
-                res = done
+        done, tracked = tracked_route(pb, res.v, lo, hi, rms_best, finish)
+        tracked["kept"] = bool(done is not None and np.isfinite(done.objective) and done.objective < res.objective)
+        if tracked["kept"]:
+            done.iterations += res.iterations
+            done.seconds += res.seconds
+            res = done
         say("tracked starts: " + ", ".join(f"{r['rms_normalised']:.3g}" for r in tracked["rounds"])
             + (f", IPOPT {tracked['finished_rms_normalised']:.3g}" if "finished_rms_normalised" in tracked else "")
-            + f" against {rms_best:.3g}: {'kept' if tracked.get('kept') else 'not kept'} ({tracked['seconds']:.1f} s)")
+            + f" against {rms_best:.3g}: {'kept' if tracked['kept'] else 'not kept'} ({tracked['seconds']:.1f} s)")
     if not np.isfinite(res.objective):
         pb.close()
         raise FitError(f"{_name(recording)}: the model could not be integrated at the optimiser's last point "

@@ -256,11 +256,12 @@ def short_segments_route(short, pb: ShootingProblem, lower, upper, theta0, v, rm
 TRACKED_ROUNDS = 2
 
 
-def tracked_route(pb: ShootingProblem, v, lower, upper, rms: float):
+def tracked_route(pb: ShootingProblem, v, lower, upper, rms: float, finish):
     """From a fit ``v`` that ended above noise (normalised residual ``rms`` on ``pb``): every segment
     started from the state an extended Kalman filter tracks at the fit's parameters
     (:func:`.tracking.filtered_states`), then the :func:`continuation` through :data:`FIT_DEFECT_WEIGHTS`;
-    again from there while it lowers the residual, :data:`TRACKED_ROUNDS` rounds at most.
+    again from there while it lowers the residual, :data:`TRACKED_ROUNDS` rounds at most; then ``finish``
+    (``v -> (IPOPT result, normalised rms)``: :func:`polish`) on the best point when a round lowered it.
 
     Why: on a recording whose piston stick-slips from sample to sample (paper 2, open loop) a segment
     started from the chained simulation leaves the recorded slip pattern within seconds even at the
@@ -269,8 +270,8 @@ def tracked_route(pb: ShootingProblem, v, lower, upper, rms: float):
     viscous friction at 0.64 of the truth).  From the filtered starts the segments follow their own
     samples, and the parameters what all of them say together.
 
-    Returns ``(v, rms, info)``: the best point and its residual (``v`` and ``rms`` themselves when no
-    round lowered it), and ``info`` with each round's residual, evaluations and seconds.
+    Returns ``(result, info)``: ``finish``'s result (None when no round lowered the residual), and
+    ``info`` with each round's residual, evaluations and seconds, and the finished residual.
     """
     best, rounds = (v, rms), []
     for _ in range(TRACKED_ROUNDS):
@@ -285,8 +286,11 @@ def tracked_route(pb: ShootingProblem, v, lower, upper, rms: float):
         best = (v_new, rms_new)
         if rms_new <= ABOVE_NOISE_WARNING:
             break
-    return best[0], best[1], {"rounds": rounds, "improved": best[1] < rms,
-                              "seconds": sum(r["seconds"] for r in rounds)}
+    info = {"rounds": rounds, "seconds": sum(r["seconds"] for r in rounds)}
+    if not best[1] < rms:
+        return None, info
+    done, info["finished_rms_normalised"] = finish(best[0])
+    return done, info
 
 
 def full_fit(pb: ShootingProblem, v0, lower, upper, prefit_rms: float, finish=None):

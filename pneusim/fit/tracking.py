@@ -57,8 +57,11 @@ def filtered_states(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray)
     process = PROCESS_STD * scales
     process[pb.position_index] *= 1e-3
     first = np.array([_FIRST_STD.get(name, 0.01 * s) for name, s in zip(model.state_names, scales)])
-    outputs = [(i, values, sigma) for (i, _, values, sigma, _) in pb.outputs]
-    kf = ExtendedKalmanFilter(dim_x=n, dim_z=len(outputs))
+    rows = np.array([i for (i, _, _, _, _) in pb.outputs])
+    values = np.column_stack([values for (_, _, values, _, _) in pb.outputs])
+    sigma = np.array([sigma for (_, _, _, sigma, _) in pb.outputs])
+    seen_at = np.column_stack([mask for (_, _, _, _, mask) in pb.outputs])
+    kf = ExtendedKalmanFilter(dim_x=n, dim_z=rows.size)
     kf.x = np.asarray(x_first, float).copy()
     kf.P = np.diag(first ** 2)
     kf.Q = np.diag(process ** 2)
@@ -75,28 +78,18 @@ def filtered_states(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray)
                 F = S[1][:, nf:nf + n] / pb.x_scale[None, :]     # d x_k / d x_{k-1}: the columns are scaled
                 kf.x = xs[1]
                 kf.P = F @ kf.P @ F.T + kf.Q
-        seen = [(i, values[k], sigma) for (i, values, sigma) in outputs if np.isfinite(values[k])]
-        if seen:
-            rows = [i for i, _, _ in seen]
-            z = np.array([value for _, value, _ in seen])
-
-            def reading(x):
-                y = x[rows].copy()
-                if pb.position_index in rows:
-                    at = rows.index(pb.position_index)
-                    y[at] = expected_position_reading(x[pb.position_index], pb.stroke_m, seen[at][2])[0]
-                return y
-
-            def slope(x):
-                H = np.zeros((len(rows), n))
-                H[np.arange(len(rows)), rows] = 1.0
-                if pb.position_index in rows:
-                    at = rows.index(pb.position_index)
-                    H[at, pb.position_index] = expected_position_reading(x[pb.position_index], pb.stroke_m,
-                                                                         seen[at][2])[1]
-                return H
-
-            kf.update(z, slope, reading, R=np.diag([sigma ** 2 for _, _, sigma in seen]))
+        seen = seen_at[k]
+        if seen.any():
+            # the model's readings and their slopes at the predicted state (filterpy asks for both there)
+            at = rows[seen]
+            reading, H = kf.x[at].copy(), np.zeros((at.size, n))
+            H[np.arange(at.size), at] = 1.0
+            position = np.flatnonzero(at == pb.position_index)
+            if position.size:
+                p = position[0]
+                reading[p], H[p, pb.position_index] = expected_position_reading(
+                    kf.x[pb.position_index], pb.stroke_m, sigma[seen][p])
+            kf.update(values[k, seen], lambda x: H, lambda x: reading, R=np.diag(sigma[seen] ** 2))
         kf.x = np.clip(kf.x, x_lo, x_hi)
         out[k] = kf.x
     return out
