@@ -216,7 +216,7 @@ class FitResult:
     def to_dict(self) -> dict:
         """The JSON result (``parameters``, ``correlation``, ``validation``, ``solver``, ``warnings`` ...)."""
         validation = {k: _finite(v) for k, v in self.validation.items() if not isinstance(v, np.ndarray)}
-        solver = {k: v for k, v in self.solver.items() if k != "prefit_attempts"}
+        solver = {k: _finite(v) for k, v in self.solver.items() if k != "prefit_attempts"}
         solver["prefit_attempts"] = [{k: (v.tolist() if isinstance(v, np.ndarray) else _finite(v))
                                       for k, v in a.items() if k != "theta"}
                                      for a in self.solver.get("prefit_attempts", [])]

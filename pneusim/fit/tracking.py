@@ -13,20 +13,25 @@ uses it after a fit, from that fit's parameters (:func:`.stages.tracked_route`).
 
 The filter is :class:`filterpy.kalman.ExtendedKalmanFilter`'s update; its prediction is one sample of
 the fit's own integrator (:class:`~pneusim.solver.sensitivity.SensitivitySimulator`, the held command and
-any transport delay as in the fit), linearised by that integrator's state sensitivities.
+any transport delay as in the fit), linearised by that integrator's state sensitivities.  The same filter
+(:func:`run_filter`) gives the prediction-error fit (:mod:`.prediction_error`) its whitened innovations and
+their fixed-gain Jacobian.
 """
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
+from scipy.linalg import LinAlgWarning
 
 from ..errors import PneusimError
 from ..solver.backends import state_scales
 from ..solver.sensitivity import command_schedule
 from .shooting import ShootingProblem, expected_position_reading
 
-__all__ = ["filtered_states", "PROCESS_STD"]
+__all__ = ["filtered_states", "run_filter", "process_std", "first_state_std", "PROCESS_STD"]
 
 #: process noise std per sample, as a fraction of each state's typical magnitude
 #: (:func:`~pneusim.solver.backends.state_scales`: 1 m/s, 1 bar, ...); the position's is 1e-3 of that,
@@ -50,23 +55,60 @@ def filtered_states(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray)
     A step the integrator cannot take keeps the state as it was.  States stay within
     :meth:`ShootingProblem.state_bounds`.
     """
-    model, sim, data = pb.model, pb.sims[0], pb.data
+    return run_filter(pb, theta, x_first, process_std(pb))["states"]
+
+
+def process_std(pb: ShootingProblem, fraction: float = PROCESS_STD, unmeasured_pressure_factor: float = 1.0) -> np.ndarray:
+    """Process noise std per sample and state (SI): ``fraction`` of each state's typical magnitude, the
+    position's 1e-3 of that (the model integrates it from the velocity), and the chamber pressures'
+    ``unmeasured_pressure_factor`` of that where the window does not measure them."""
+    scales = state_scales(pb.model, pb.stroke_m)
+    out = fraction * scales
+    out[pb.position_index] *= 1e-3
+    measured = {name for (_, name, _, _, _) in pb.outputs}
+    for i, name in enumerate(pb.model.state_names):
+        if name in ("pressure_a_Pa", "pressure_b_Pa") and name not in measured:
+            out[i] *= unmeasured_pressure_factor
+    return out
+
+
+def first_state_std(pb: ShootingProblem) -> np.ndarray:
+    """Prior std of the first state (SI): :data:`_FIRST_STD`, else 1 % of the state's typical magnitude."""
+    scales = state_scales(pb.model, pb.stroke_m)
+    return np.array([_FIRST_STD.get(name, 0.01 * s) for name, s in zip(pb.model.state_names, scales)])
+
+
+def run_filter(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray, process: np.ndarray,
+               gradients: bool = False) -> dict:
+    """The extended Kalman filter over ``pb``'s window at the scaled free parameters ``theta`` from the first
+    state ``x_first`` (SI), with process noise std ``process`` (SI, per state and sample).
+
+    Returns ``{"states": (N, n) filtered states, "ok": whether every step integrated}``; with ``gradients``
+    also ``"innovations"``: the whitened innovations ``L_k^-1 (y_k - h(x_k^-))`` of every measured value
+    (``S_k = L_k L_k^T`` their predicted covariance; a missing value gives 0), and ``"jacobian"``: their
+    derivative with respect to ``(theta, x_first / pb.x_scale)``, the gain held fixed (the usual
+    prediction-error gradient: the state sensitivities propagate through the model's one-sample
+    sensitivities and the update's ``I - K H``), shape ``(N * n_measured, n_free + n)``.
+    """
+    sim, data = pb.sims[0], pb.data
     n, nf = pb.n, pb.n_free
     sim.set_params(pb.params_of(theta))
-    scales = state_scales(model, pb.stroke_m)
-    process = PROCESS_STD * scales
-    process[pb.position_index] *= 1e-3
-    first = np.array([_FIRST_STD.get(name, 0.01 * s) for name, s in zip(model.state_names, scales)])
     rows = np.array([i for (i, _, _, _, _) in pb.outputs])
     values = np.column_stack([values for (_, _, values, _, _) in pb.outputs])
     sigma = np.array([sigma for (_, _, _, sigma, _) in pb.outputs])
     seen_at = np.column_stack([mask for (_, _, _, _, mask) in pb.outputs])
     kf = ExtendedKalmanFilter(dim_x=n, dim_z=rows.size)
     kf.x = np.asarray(x_first, float).copy()
-    kf.P = np.diag(first ** 2)
-    kf.Q = np.diag(process ** 2)
+    kf.P = np.diag(first_state_std(pb) ** 2)
+    kf.Q = np.diag(np.asarray(process, float) ** 2)
     x_lo, x_hi = pb.state_bounds()
     out = np.empty((data.n_samples, n))
+    ok = True
+    if gradients:
+        innovations = np.zeros((data.n_samples, rows.size))
+        jacobian = np.zeros((data.n_samples, rows.size, nf + n))
+        Z = np.zeros((n, nf + n))   # d x / d (theta, x_first scaled)
+        Z[:, nf:] = np.diag(pb.x_scale)
     for k in range(data.n_samples):
         if k > 0:
             schedule = command_schedule(data.time_s, data.command_V, k - 1, k, pb.delay_s, data.command_before_V)
@@ -78,6 +120,11 @@ def filtered_states(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray)
                 F = S[1][:, nf:nf + n] / pb.x_scale[None, :]     # d x_k / d x_{k-1}: the columns are scaled
                 kf.x = xs[1]
                 kf.P = F @ kf.P @ F.T + kf.Q
+                if gradients:
+                    Z = F @ Z
+                    Z[:, :nf] += S[1][:, :nf]
+            else:
+                ok = False
         seen = seen_at[k]
         if seen.any():
             # the model's readings and their slopes at the predicted state (filterpy asks for both there)
@@ -89,7 +136,20 @@ def filtered_states(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray)
                 p = position[0]
                 reading[p], H[p, pb.position_index] = expected_position_reading(
                     kf.x[pb.position_index], pb.stroke_m, sigma[seen][p])
-            kf.update(values[k, seen], lambda x: H, lambda x: reading, R=np.diag(sigma[seen] ** 2))
+            with warnings.catch_warnings():
+                # the innovation covariance mixes m^2 and Pa^2 (1e-9 against 1e6): SciPy calls it ill-conditioned,
+                # but it is diagonally dominant and its inverse is exact to rounding
+                warnings.simplefilter("ignore", LinAlgWarning)
+                kf.update(values[k, seen], lambda x: H, lambda x: reading, R=np.diag(sigma[seen] ** 2))
+            if gradients:
+                L = np.linalg.cholesky(kf.S)
+                innovations[k, seen] = np.linalg.solve(L, kf.y)
+                jacobian[k, seen] = -np.linalg.solve(L, H @ Z)
+                Z = Z - kf.K @ (H @ Z)
         kf.x = np.clip(kf.x, x_lo, x_hi)
         out[k] = kf.x
-    return out
+    result = {"states": out, "ok": ok}
+    if gradients:
+        result["innovations"] = innovations.ravel()
+        result["jacobian"] = jacobian.reshape(-1, nf + n)
+    return result
