@@ -19,9 +19,9 @@ import numpy as np
 from ..errors import FitError
 from .initial import initial_starts
 from .nlp import solve_ipopt
+from .prediction_error import prediction_error_fit
 from .result import ABOVE_NOISE_WARNING
 from .shooting import ShootingProblem
-from .prediction_error import prediction_error_fit
 from .tracking import filtered_states
 
 __all__ = ["trust_region", "continuation", "two_routes", "well_above", "prefit", "full_fit", "polish",

@@ -58,7 +58,8 @@ def filtered_states(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray)
     return run_filter(pb, theta, x_first, process_std(pb))["states"]
 
 
-def process_std(pb: ShootingProblem, fraction: float = PROCESS_STD, unmeasured_pressure_factor: float = 1.0) -> np.ndarray:
+def process_std(pb: ShootingProblem, fraction: float = PROCESS_STD,
+                unmeasured_pressure_factor: float = 1.0) -> np.ndarray:
     """Process noise std per sample and state (SI): ``fraction`` of each state's typical magnitude, the
     position's 1e-3 of that (the model integrates it from the velocity), and the chamber pressures'
     ``unmeasured_pressure_factor`` of that where the window does not measure them."""
@@ -137,8 +138,8 @@ def run_filter(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray, proc
                 reading[p], H[p, pb.position_index] = expected_position_reading(
                     kf.x[pb.position_index], pb.stroke_m, sigma[seen][p])
             with warnings.catch_warnings():
-                # the innovation covariance mixes m^2 and Pa^2 (1e-9 against 1e6): SciPy calls it ill-conditioned,
-                # but it is diagonally dominant and its inverse is exact to rounding
+                # the innovation covariance mixes m^2 and Pa^2 (1e-9 against 1e6): SciPy's condition estimate
+                # sees those units, not a nearly singular matrix
                 warnings.simplefilter("ignore", LinAlgWarning)
                 kf.update(values[k, seen], lambda x: H, lambda x: reading, R=np.diag(sigma[seen] ** 2))
             if gradients:
