@@ -123,7 +123,9 @@ sigma. Measured and not adopted: the same process noise on unmeasured pressures 
 too (``s1030``: the filter lost track, 2.36); a broader first stage (process noise 0.1 and 0.03 first:
 ``s1017``, ``s1006`` and ``s1031`` all in wrong basins with the smoothing velocity 0.2-5.7 times the truth);
 the smoothing velocity freed in the broad stages too (``s1006``: 2.15, the smoothing at 10 times the truth);
-another tracked round while the position alone is above noise (``s1006``: 1.019, then 1.025).
+another tracked round while the position alone is above noise (``s1006``: 1.019, then 1.025); a second
+prediction-error start from the best fit's parameters (``s1017`` 3.85, ``s5000`` 6.48 times the innovations'
+noise level); a window of 1000 or 4000 samples for ``s1017`` (2.48 and 3.57, both in wrong basins).
 """
 
 from __future__ import annotations
