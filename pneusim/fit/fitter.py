@@ -213,7 +213,10 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         pre_pb, pre_lo, pre_hi = problem(min(n_est, prefit_samples))
         for k, factors in enumerate(_START_FACTORS[:max(1, starts)]):
             theta0 = np.clip(theta_start * np.array([factors.get(name, 1.0) for name in free]), lower, upper)
-            v0 = pre_pb.join(theta0, initial_starts(pre_pb, theta0, recording, pre_pb.data.n_samples))
+            chained = initial_starts(pre_pb, theta0, recording, pre_pb.data.n_samples)
+            if k == 0:
+                first_at_start = chained[0]   # the prediction-error route starts from here too
+            v0 = pre_pb.join(theta0, chained)
             v_pre, rms_pre, info = prefit(pre_pb, v0, pre_lo, pre_hi)
             attempts.append({"start": k + 1, "rms_normalised": rms_pre, **info})
             say(f"start {k + 1}, pre-fit ({pre_pb.data.n_samples} samples): trust region {info['status']} after "
@@ -282,8 +285,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         # on a control with nothing missing, 1.75 -> 1.49, and on one at 5.49 -> 5.489; two of the eight,
         # at 5.49 and 5.94, more than MODEL_SHORT above noise, are no longer tried.)
         res, tracked = _better(res, *tracked_route(pb, res.v, lo, hi, rms_best, finish))
-        say("tracked starts: " + ", ".join(f"{r['rms_normalised']:.3g}" for r in tracked["rounds"])
-            + (f", IPOPT {tracked['finished_rms_normalised']:.3g}" if "finished_rms_normalised" in tracked else "")
+        say("tracked starts: " + _rounds_text(tracked)
             + f" against {rms_best:.3g}: {'kept' if tracked['kept'] else 'not kept'} ({tracked['seconds']:.1f} s)")
     predicted = None
     if warm_start is None and _normalised_rms(pb, res) > ABOVE_NOISE_WARNING:
@@ -292,15 +294,11 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         # MODEL_SHORT above noise in a wrong basin, 9.7 -> 0.99 through this route);
         # the filter tells apart a chaotic recording from one the model lacks physics for: the route stops
         # where its innovations end far above their noise level (see prediction_error_route)
-        first = initial_starts(pre_pb, theta_start, recording, pre_pb.data.n_samples)[0]
-        res, predicted = _better(res, *prediction_error_route(pre_pb, pb, lo, hi, theta_start, first,
+        res, predicted = _better(res, *prediction_error_route(pre_pb, pb, lo, hi, theta_start, first_at_start,
                                                               _normalised_rms(pb, res), finish))
         pem = predicted["prediction_error"]
         say(f"prediction-error route: filter innovations {pem['rms_innovations']:.3g} ({pem['seconds']:.1f} s)"
-            + (", tracked starts " + ", ".join(f"{r['rms_normalised']:.3g}" for r in predicted["rounds"])
-               if "rounds" in predicted else "")
-            + (f", IPOPT {predicted['finished_rms_normalised']:.3g}"
-               if predicted.get("finished_rms_normalised") is not None else "")
+            + (", tracked starts " + _rounds_text(predicted) if "rounds" in predicted else "")
             + f": {'kept' if predicted['kept'] else 'not kept'} ({predicted['seconds']:.1f} s)")
     if warm_start is None:
         pre_pb.close()
@@ -368,6 +366,13 @@ def _better(res, done, info: dict):
     done.iterations += res.iterations
     done.seconds += res.seconds
     return done, info
+
+
+def _rounds_text(info: dict) -> str:
+    """A tracked route's rounds and its finished residual, for the stage line."""
+    finished = info.get("finished_rms_normalised")
+    return (", ".join(f"{r['rms_normalised']:.3g}" for r in info["rounds"])
+            + (f", IPOPT {finished:.3g}" if finished is not None else ""))
 
 
 def _normalised_rms(pb: ShootingProblem, res) -> float:

@@ -13,9 +13,11 @@ from __future__ import annotations
 
 from typing import Sequence
 
+import numpy as np
+
 from ..errors import FitError
 
-__all__ = ["DEFAULT_FREE", "EFFECT_FREE", "parameter_scale", "parameter_bounds", "check_free"]
+__all__ = ["DEFAULT_FREE", "EFFECT_FREE", "parameter_scale", "parameter_bounds", "check_free", "clip_inside"]
 
 #: the nominal model's free parameters (``shared/spec/diagnosis.md``)
 DEFAULT_FREE = ("valve_sonic_conductance_m3_per_s_Pa", "valve_critical_pressure_ratio",
@@ -126,3 +128,12 @@ def check_free(names: Sequence[str], param_names: Sequence[str]) -> None:
                            f"such as {', '.join(DEFAULT_FREE[:3])} or EFFECT.PARAM of a switched-on effect")
     if len(set(names)) != len(names):
         raise FitError(f"--free lists a parameter twice: {', '.join(names)}")
+
+
+def clip_inside(v, lower, upper):
+    """``v`` clipped to strictly inside the finite bounds ``lower .. upper`` (a relative 1e-12 in from each);
+    an infinite bound (spool and temperature states) stays infinite.  The optimisers' start points."""
+    with np.errstate(invalid="ignore"):   # np.where evaluates both branches: inf - inf is NaN there
+        inner_lower = np.where(np.isfinite(lower), lower + 1e-12 * np.abs(lower), lower)
+        inner_upper = np.where(np.isfinite(upper), upper - 1e-12 * np.abs(upper), upper)
+    return np.clip(v, inner_lower, inner_upper)

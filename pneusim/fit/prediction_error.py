@@ -36,6 +36,7 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
+from .parameters import clip_inside
 from .shooting import ShootingProblem
 from .tracking import process_std, run_filter
 
@@ -76,10 +77,7 @@ def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.nd
     x_lo, x_hi = pb.state_bounds()
     lo = np.concatenate([lower, x_lo / pb.x_scale])
     hi = np.concatenate([upper, x_hi / pb.x_scale])
-    with np.errstate(invalid="ignore"):   # an infinite bound stays infinite
-        inner_lo = np.where(np.isfinite(lo), lo + 1e-9 * np.maximum(np.abs(lo), 1.0), lo)
-        inner_hi = np.where(np.isfinite(hi), hi - 1e-9 * np.maximum(np.abs(hi), 1.0), hi)
-    w = np.clip(np.concatenate([theta0, np.asarray(x_first, float) / pb.x_scale]), inner_lo, inner_hi)
+    w = clip_inside(np.concatenate([theta0, np.asarray(x_first, float) / pb.x_scale]), lo, hi)
     n_seen = max(1, sum(int(mask.sum()) for (_, _, _, _, mask) in pb.outputs))   # a gap's innovation is 0
     stages = []
     for fraction in schedule:

@@ -19,6 +19,7 @@ import numpy as np
 from ..errors import FitError
 from .initial import initial_starts
 from .nlp import solve_ipopt
+from .parameters import clip_inside
 from .prediction_error import prediction_error_fit
 from .result import ABOVE_NOISE_WARNING
 from .shooting import ShootingProblem
@@ -97,12 +98,7 @@ def trust_region(pb: ShootingProblem, v0, lower, upper, max_evaluations: int = 8
         jr, jg = pb.jacobians(v)
         return sparse.vstack([jr, defect_weight * jg]).tocsr()
 
-    # strictly inside finite bounds; an infinite bound (spool and temperature states) stays infinite
-    # (inf * 1e-12 * |inf| would be NaN)
-    with np.errstate(invalid="ignore"):   # np.where evaluates both branches: inf - inf is NaN there
-        inner_lower = np.where(np.isfinite(lower), lower + 1e-12 * np.abs(lower), lower)
-        inner_upper = np.where(np.isfinite(upper), upper - 1e-12 * np.abs(upper), upper)
-    v0 = np.clip(v0, inner_lower, inner_upper)
+    v0 = clip_inside(v0, lower, upper)
     try:
         fit = least_squares(fun, v0, jac=jac, bounds=(lower, upper), method="trf", x_scale=1.0,
                             tr_solver="lsmr", max_nfev=max_evaluations, xtol=tolerance, ftol=tolerance)

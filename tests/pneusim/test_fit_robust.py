@@ -218,23 +218,30 @@ def test_fit_started_at_the_truth_of_a_chaotic_open_loop_recording_stays_at_nois
     assert s["inside_3_sigma"] >= s["parameters"] - 1, s["z"]
 
 
+def _window(seed: int, at_truth: bool = False):
+    """``(problem of the 2000-sample pre-fit window, setup, truth)`` of robustness case ``seed``, the setup
+    starting from the data sheet or from the truth."""
+    spec = next(s for s in robustness_cases(48) if s.seed == seed)
+    rig, truth, rec = make_case(spec)
+    setup = FitSetup(rec, rig, (), fit_free(True), None, None, truth if at_truth else None, 50)
+    pb, _, _ = setup.problem(2000, 1e-6, 1)
+    return pb, setup, truth
+
+
 def test_filtered_starts_follow_a_chaotic_recording_at_its_true_parameters():
     """Paper 2, open-loop multisine without pressures (``s1007``), its 2000-sample pre-fit window at the
     true parameters: segments started from the chained simulation leave the recorded slip pattern (the
     window at 8.3 times noise), segments started from the extended Kalman filter's states follow it (a
     model at its true parameters, corrected by every position sample, must track the recording to the
     noise: 0.90)."""
-    spec = next(s for s in robustness_cases(48) if s.seed == 1007)
-    rig, truth, rec = make_case(spec)
-    setup = FitSetup(rec, rig, (), fit_free(True), None, None, truth, 50)
-    pb, _, _ = setup.problem(2000, 1e-6, 1)
+    pb, setup, _ = _window(1007, at_truth=True)
     theta = setup.theta_start
 
     def window_rms(starts):
         e = pb.evaluate(pb.join(theta, starts), derivatives=False)
         return float(np.sqrt(np.mean(e["r"] ** 2)))
 
-    chained = initial_starts(pb, theta, rec, pb.data.n_samples)
+    chained = initial_starts(pb, theta, setup.recording, pb.data.n_samples)
     filtered = filtered_states(pb, theta, chained[0])
     rms_chained, rms_filtered = window_rms(chained), window_rms(filtered[pb.starts])
     pb.close()
@@ -243,22 +250,13 @@ def test_filtered_starts_follow_a_chaotic_recording_at_its_true_parameters():
     assert rms_filtered < ABOVE_NOISE_WARNING
 
 
-def _window(seed: int, start_values=None):
-    """``(problem of the 2000-sample pre-fit window, setup, truth)`` of robustness case ``seed``."""
-    spec = next(s for s in robustness_cases(48) if s.seed == seed)
-    rig, truth, rec = make_case(spec)
-    setup = FitSetup(rec, rig, (), fit_free(True), None, None, start_values, 50)
-    pb, _, _ = setup.problem(2000, 1e-6, 1)
-    return pb, setup, truth
-
-
 def test_filter_innovations_are_white_at_the_true_parameters():
     """At the true parameters the filter predicts each sample to within its own predicted uncertainty: the
     whitened innovations of ``s1030``'s window (paper 2, open-loop multisine, both pressures, a chaotic
     stick-slip) have rms 1 to within 15 % and no trend; at the data sheet's values (tens of percent off)
     they are far above it.  Their fixed-gain Jacobian has one row per measured value and a column per free
     parameter and first state."""
-    pb, setup, truth = _window(1030, start_values=None)
+    pb, setup, truth = _window(1030)
     theta_true = np.array([truth[name] for name in setup.free]) / setup.scales
     first = initial_starts(pb, theta_true, setup.recording, pb.data.n_samples)[0]
     process = process_std(pb, 3e-4)
