@@ -14,7 +14,9 @@
    pre-fit's own problem from there ends clearly lower (:func:`.stages.short_segments_route`);
 4. **fit** — the whole estimation part from the pre-fit: trust region (where
    that ends above noise and well above the pre-fit, also with the continuity weight raised in turn:
-   :func:`.stages.full_fit`), then IPOPT (:mod:`.nlp`) on the exact constrained problem; a fit that
+   :func:`.stages.full_fit`), then the exact constrained problem: by Gauss-Newton steps where the trust
+   region ended at noise, until the next step is within a tenth of every standard error
+   (:func:`.stages.settled`), else (or where those do not settle) by IPOPT (:mod:`.nlp`); a fit that
    ends well above its pre-fit's residual, or above noise after a pre-fit above noise, is retried
    from the next start (the best kept; a start whose pre-fit ends where an earlier one's did is not
    fitted again), unless the pre-fit itself ends more than
@@ -62,7 +64,7 @@ from .result import ABOVE_NOISE_WARNING, FitResult, ParameterEstimate
 from .setup import FitSetup, _name
 from .shooting import ShootingProblem, position_reading
 from .stages import (MODEL_SHORT, PENALTY_WEIGHT, SHORT_SEGMENTS, full_fit, polish, prediction_error_route, prefit,
-                     short_segments_route, tracked_route, trust_region, well_above)
+                     settled, short_segments_route, tracked_route, trust_region, well_above)
 from .threads import one_blas_thread
 from .uncertainty import covariance
 from .warm_start import warm_states
@@ -252,14 +254,22 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
             # IPOPT on the kept route's point, unless the direct route's was already finished and kept; where
             # the continuation was kept over a finished direct route, the better of the two finished fits
             finished = info.pop("finished", None)
-            res, rms = finished if finished is not None and info["route"] == "direct" else finish(v_ls)
+            done = settled(pb, v_ls, rms_ls, rtol, lo, hi) if finished is None else None
+            if done is not None:
+                res, rms = done, _normalised_rms(pb, done)
+            else:
+                res, rms = finished if finished is not None and info["route"] == "direct" else finish(v_ls)
             if finished is not None and info["route"] != "direct" and finished[0].objective < res.objective:
                 res, rms = finished
             attempts[-1].update(fit_rms_normalised=rms, fit_routes=info["routes"], ipopt_status=res.status,
                                 ipopt_iterations=res.iterations)
             fits.append((res.objective if np.isfinite(res.objective) else np.inf, k, res))
-            say(f"start {k + 1}, fit: IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s), "
-                f"normalised rms residual {rms:.3g}")
+            say(f"start {k + 1}, fit: " + (f"settled by {res.iterations} Gauss-Newton steps on the constrained problem "
+                                           f"(largest defect {res.max_defect:.2g}, the next step within "
+                                           "a tenth of every standard error; IPOPT not needed)"
+                                           if done is not None else
+                                           f"IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s)")
+                + f", normalised rms residual {rms:.3g}")
             # restart when the fit ended well above its pre-fit (the short window had a second basin)
             # or when both ended above noise: the window's basin need not be the whole part's (paper 1,
             # closed-loop multisine without pressures: start 1's pre-fit 2.14 and fit 2.37 times noise

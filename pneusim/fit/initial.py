@@ -74,13 +74,14 @@ def _best_start(pb: ShootingProblem, j: int, candidates):
     return best[1], best[2]
 
 
-def _segment_residuals(pb: ShootingProblem, j: int, x: np.ndarray, sensitivities: bool = False):
+def _segment_residuals(pb: ShootingProblem, j: int, x: np.ndarray, sensitivities: bool = False, sim=None):
     """``(r, J)``: the normalised residuals of segment ``j``'s samples simulated from the start state
-    ``x`` by ``pb.sims[0]`` (at the parameters last set on it), and with ``sensitivities`` their
+    ``x`` by ``sim`` (default ``pb.sims[0]``; at the parameters last set on it), and with ``sensitivities`` their
     Jacobian over all of that simulator's sensitivity columns (else None).  A missing sample gives a
     zero residual.  Raises :class:`PneusimError` where the integration fails."""
     first, n_out = pb.starts[j], pb.stops[j] - pb.starts[j] + 1
-    xs, S = pb.sims[0].run(pb.data.time_s[first], np.asarray(x, float), pb.schedules[j], n_out, sensitivities)
+    xs, S = (sim or pb.sims[0]).run(pb.data.time_s[first], np.asarray(x, float), pb.schedules[j], n_out,
+                                    sensitivities)
     r = _residuals(pb, j, xs)
     if not sensitivities:
         return r, None
@@ -141,8 +142,9 @@ def _hidden_state(pb: ShootingProblem, j: int, x0: np.ndarray, params: np.ndarra
     """
     from scipy.optimize import least_squares
 
-    model, sim = pb.model, pb.sims[0]
-    sim.set_params(params)
+    model = pb.model
+    for sim in pb.sims:
+        sim.set_params(params)
     names = ["velocity_m_per_s"] + [s for s in ("pressure_a_Pa", "pressure_b_Pa") if s not in pb.data.signals]
     hidden = [model.state_names.index(s) for s in names]
     value = dict(zip(model.param_names, params))
@@ -156,11 +158,11 @@ def _hidden_state(pb: ShootingProblem, j: int, x0: np.ndarray, params: np.ndarra
     n_res = (pb.stops[j] - pb.starts[j] + 1) * len(pb.data.signals) + len(hidden)
     cols = [pb.n_free + i for i in hidden]
 
-    def residuals(z, jac=False):
+    def residuals(sim, z, jac=False):
         x = x0.copy()
         x[hidden] = z * pb.x_scale[hidden]
         try:
-            r, J = _segment_residuals(pb, j, x, jac)
+            r, J = _segment_residuals(pb, j, x, jac, sim)
         except PneusimError:
             return (np.full(n_res, 1e6), np.zeros((n_res, len(hidden)))) if jac else np.full(n_res, 1e6)
         r = np.concatenate([r, (z - z_prior) / prior_width])
@@ -168,9 +170,14 @@ def _hidden_state(pb: ShootingProblem, j: int, x0: np.ndarray, params: np.ndarra
             return r
         return r, np.vstack([J[:, cols], np.diag(1.0 / prior_width)])
 
-    def cost(z):
-        r = residuals(z)
+    def cost(sim, z):
+        r = residuals(sim, z)
         return float(np.dot(r, r))
+
+    def refine(sim, z):
+        fit = least_squares(lambda z: residuals(sim, z), np.clip(z, z_lo, z_hi),
+                            jac=lambda z: residuals(sim, z, True)[1], method="trf", bounds=(z_lo, z_hi), max_nfev=50)
+        return fit.x, cost(sim, fit.x)
 
     candidates = [z_prior]
     grid = np.linspace(low, high, GRID_POINTS + 2)[1:-1] if (grid and len(hidden) > 1) else []
@@ -181,14 +188,12 @@ def _hidden_state(pb: ShootingProblem, j: int, x0: np.ndarray, params: np.ndarra
             if pb_ is not None:
                 z[2] = pb_ / pb.x_scale[hidden[2]]
             candidates.append(z)
-    costs = [cost(z) for z in candidates]
+    # the grid's points and the local refinements are independent: spread over the problem's simulators
+    costs = pb.map_sims(cost, candidates)
     best_z, best_cost = candidates[int(np.argmin(costs))], min(costs)
-    for i in np.argsort(costs)[:LOCAL_STARTS]:
-        fit = least_squares(lambda z: residuals(z), np.clip(candidates[i], z_lo, z_hi),
-                            jac=lambda z: residuals(z, True)[1], method="trf", bounds=(z_lo, z_hi), max_nfev=50)
-        c = cost(fit.x)
+    for z, c in pb.map_sims(refine, [candidates[i] for i in np.argsort(costs)[:LOCAL_STARTS]]):
         if c < best_cost:
-            best_z, best_cost = fit.x, c
+            best_z, best_cost = z, c
     x = x0.copy()
     x[hidden] = np.clip(best_z, z_lo, z_hi) * pb.x_scale[hidden]
     return x

@@ -126,6 +126,23 @@ the smoothing velocity freed in the broad stages too (``s1006``: 2.15, the smoot
 another tracked round while the position alone is above noise (``s1006``: 1.019, then 1.025); a second
 prediction-error start from the best fit's parameters (``s1017`` 3.85, ``s5000`` 6.48 times the innovations'
 noise level); a window of 1000 or 4000 samples for ``s1017`` (2.48 and 3.57, both in wrong basins).
+
+Stop 37, speed (the issue's 5x against SciPy's peer): the pre-fit's trust region is most of the benchmark
+fit (35 evaluations, 2.8-3.0 s of 4.0-4.2 s), and its count is set by the parameters, not the segment
+states: from the true parameters it takes 4 evaluations, from the data sheet with the true states 24, from
+the data sheet 35.  Its first step goes far (the Stribeck velocity to 2.4 and the mass to 0.64 of the truth,
+SciPy's first trust radius is 21 in the scaled variables) and the next 17 creep back.  Measured and not
+adopted, on the benchmark's recording and ``s1001``, ``s1005``, ``s1013``, ``s1021``, ``s1033``: the pre-fit at
+``rtol`` 1e-5 (2.6 s against 3.2 s) or 1e-4 (1.2 s, but the window ends at 1.79 times noise: the integration
+error dominates); the first trust radius capped at 0.1-3 (2.2-2.7 s; SciPy has no public option for it);
+the parameters boxed within a factor of 1.5 of the start first, then freed (``s1013`` 1.00 -> 1.99, ``s1021``
+0.98 -> 4.40); a 500-sample pre-fit first, then the 2000-sample one from its parameters (the benchmark's
+pre-fit 0.98 -> 2.50, ``s1013`` 1.00 -> 2.00, ``s1021`` 0.98 -> 1.46); the segment states fitted alone at
+the start's parameters first (5 or 9 evaluations, then 24 or 16: 2.6 s against 3.2 s once, the other time
+ending at 2.52 times noise).  Adopted after
+the pre-fit instead: Gauss-Newton steps on the constrained problem where the whole part's trust region
+ends at noise (:func:`~pneusim.fit.stages.settled`), the same fits as IPOPT's (19 of the set's 48 residuals
+moved, none by more than 4e-4; 46 of 48 at noise, 97.0 % within 3 sigma as before), 5.2 -> 4.0 s on the benchmark.
 """
 
 from __future__ import annotations

@@ -235,6 +235,22 @@ class ShootingProblem:
         return np.concatenate([np.asarray(theta, float), (np.asarray(starts, float) / self.x_scale).ravel()])
 
     # ------------------------------------------------------------- evaluation
+    def map_sims(self, work, items) -> list:
+        """``[work(sim, item) for item in items]``, the items dealt in turn to the problem's simulators,
+        each simulator working through its share in its own thread (CVODES runs without the GIL).
+        ``work`` must use only the simulator it is given."""
+        items = list(items)
+        k = len(self.sims)
+
+        def share(worker):
+            return [work(self.sims[worker], item) for item in items[worker::k]]
+
+        parts = [share(0)] if self._pool is None else list(self._pool.map(share, range(k)))
+        out = [None] * len(items)
+        for worker, part in enumerate(parts):
+            out[worker::k] = part
+        return out
+
     def simulate_segments(self, v: np.ndarray, sensitivities: bool):
         """Per segment ``(x (L+1, n), S (L+1, n, ns) or None)``; ``None`` for a segment whose integration failed."""
         theta, starts = self.split(v)
@@ -242,25 +258,14 @@ class ShootingProblem:
         for sim in self.sims:
             sim.set_params(p)
 
-        def work(worker):
-            out = {}
-            sim = self.sims[worker]
-            for j in range(worker, self.n_segments, len(self.sims)):
-                n_out = self.stops[j] - self.starts[j] + 1
-                try:
-                    out[j] = sim.run(self.data.time_s[self.starts[j]], starts[j], self.schedules[j], n_out,
-                                     sensitivities)
-                except SolverError:
-                    out[j] = None
-            return out
+        def work(sim, j):
+            n_out = self.stops[j] - self.starts[j] + 1
+            try:
+                return sim.run(self.data.time_s[self.starts[j]], starts[j], self.schedules[j], n_out, sensitivities)
+            except SolverError:
+                return None
 
-        results = {}
-        if self._pool is None:
-            results.update(work(0))
-        else:
-            for part in self._pool.map(work, range(len(self.sims))):
-                results.update(part)
-        return [results[j] for j in range(self.n_segments)]
+        return self.map_sims(work, range(self.n_segments))
 
     def evaluate(self, v: np.ndarray, derivatives: bool = True) -> dict:
         """Residuals ``r``, defects ``g`` and (with ``derivatives``) the nonzeros of their Jacobians.
