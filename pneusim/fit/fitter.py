@@ -264,12 +264,11 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
             attempts[-1].update(fit_rms_normalised=rms, fit_routes=info["routes"], ipopt_status=res.status,
                                 ipopt_iterations=res.iterations)
             fits.append((res.objective if np.isfinite(res.objective) else np.inf, k, res))
-            say(f"start {k + 1}, fit: " + (f"settled by {res.iterations} Gauss-Newton steps on the constrained problem "
-                                           f"(largest defect {res.max_defect:.2g}, the next step within "
-                                           "a tenth of every standard error; IPOPT not needed)"
-                                           if done is not None else
-                                           f"IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s)")
-                + f", normalised rms residual {rms:.3g}")
+            how = (f"settled by {res.iterations} Gauss-Newton steps on the constrained problem (largest defect "
+                   f"{res.max_defect:.2g}, the next step within a tenth of every standard error; IPOPT not needed)"
+                   if done is not None else
+                   f"IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s)")
+            say(f"start {k + 1}, fit: {how}, normalised rms residual {rms:.3g}")
             # restart when the fit ended well above its pre-fit (the short window had a second basin)
             # or when both ended above noise: the window's basin need not be the whole part's (paper 1,
             # closed-loop multisine without pressures: start 1's pre-fit 2.14 and fit 2.37 times noise
