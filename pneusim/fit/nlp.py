@@ -31,7 +31,7 @@ from scipy import sparse
 from ..errors import SolverError
 from .shooting import ShootingProblem
 
-__all__ = ["solve_ipopt", "IpoptResult"]
+__all__ = ["solve_ipopt", "IpoptResult", "damped_gauss_newton"]
 
 #: relative and absolute damping added to the Gauss-Newton matrix
 GN_DAMPING = (1e-3, 1e-9)
@@ -47,6 +47,12 @@ class IpoptResult:
     seconds: float
     max_defect: float         #: largest continuity defect (state-scaled)
     formulation: str = "continuity constraints"
+
+
+def damped_gauss_newton(gn):
+    """The Gauss-Newton matrix ``gn`` (sparse, ``J^T J``) with :data:`GN_DAMPING` added to its diagonal:
+    ``gn + diag(1e-3 diag(gn) + 1e-9)`` (sparse), what this module's IPOPT and :func:`.stages.settled` step with."""
+    return (gn + sparse.diags(GN_DAMPING[0] * gn.diagonal() + GN_DAMPING[1])).tocsr()
 
 
 class _ClimbWatch(ca.Callback):
@@ -188,8 +194,7 @@ class _Oracle(ca.Callback):
         gn = (jr.T @ jr).tocsr()
         if self.penalty is not None:
             gn = (gn + self.penalty ** 2 * (jg.T @ jg)).tocsr()
-        values = np.asarray(gn[self.h_rows, self.h_cols]).ravel()
-        values[self.h_diag] += GN_DAMPING[0] * values[self.h_diag] + GN_DAMPING[1]
+        values = np.asarray(damped_gauss_newton(gn)[self.h_rows, self.h_cols]).ravel()
         return [ca.DM(self.sp_h, values * (float(arg[2]) / self.M))]
 
 

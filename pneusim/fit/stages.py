@@ -376,7 +376,7 @@ def settled(pb: ShootingProblem, v, rms: float, rtol: float, lower, upper) -> Ip
     where the trust region has brought the fit to noise; None where that does not settle, and IPOPT runs.
 
     Each step minimises the linearised residuals subject to the linearised continuity constraints
-    (Gauss-Newton matrix with IPOPT's damping :data:`.nlp.GN_DAMPING`, one sparse KKT solve).  Settled:
+    (IPOPT's damped Gauss-Newton matrix, :func:`.nlp.damped_gauss_newton`; one sparse KKT solve).  Settled:
     the largest continuity defect within the constraint violation at which :func:`polish`'s IPOPT itself
     stops (``10 * 20 rtol``, its acceptable level) and the next step moving no free parameter by more than
     :data:`SETTLED_STEP` of its standard error (:func:`.uncertainty.covariance`).  Not settled, and IPOPT's
@@ -405,7 +405,7 @@ def settled(pb: ShootingProblem, v, rms: float, rtol: float, lower, upper) -> Ip
     from scipy import sparse
     from scipy.sparse.linalg import spsolve
 
-    from .nlp import GN_DAMPING
+    from .nlp import damped_gauss_newton
     from .uncertainty import covariance
 
     if not rms <= ABOVE_NOISE_WARNING:
@@ -420,12 +420,11 @@ def settled(pb: ShootingProblem, v, rms: float, rtol: float, lower, upper) -> Ip
     for steps in range(SETTLED_STEPS + 1):
         r, g = e["r"], e["g"]
         jr, jg = pb.jacobians(v)
-        H = (jr.T @ jr).tocsc()
-        H = H + sparse.diags(GN_DAMPING[0] * H.diagonal() + GN_DAMPING[1])
-        delta = spsolve(sparse.bmat([[H, jg.T], [jg, None]]).tocsc(), np.concatenate([-(jr.T @ r), -g]))[:n_v]
+        kkt = sparse.bmat([[damped_gauss_newton(jr.T @ jr), jg.T], [jg, None]]).tocsc()
+        delta = spsolve(kkt, np.concatenate([-(jr.T @ r), -g]))[:n_v]
         if not np.all(np.isfinite(delta)):
             return None
-        defect = float(np.max(np.abs(g))) if g.size else 0.0
+        defect = float(np.max(np.abs(g), initial=0.0))
         step = float(np.max(np.abs(delta[:nf]) / covariance(pb, v)["std"]))   # in standard errors
         if defect <= tolerance and step <= SETTLED_STEP:
             return IpoptResult(v, float(np.dot(r, r)), "Gauss_Newton_Settled", True, steps, 0.0, defect,
