@@ -22,6 +22,8 @@
   through that route.
 * The chaotic open-loop ``s1007`` fitted from its true values reaches the noise (a strict expected failure
   at 1.65 times noise until the prediction-error route).
+* A recording whose piston rests at its end stop through the first pre-fit window (``s1018``): the window
+  moves to where the piston moves, and the fit reaches the noise from its first trust region.
 * The robustness score counts a parameter whose standard error is not finite as outside 3 sigma.
 """
 
@@ -33,7 +35,7 @@ import pytest
 from pneusim.cli import main
 from pneusim.experiment import standard_experiment
 from pneusim.fit import fit_recording
-from pneusim.fit.setup import FitSetup
+from pneusim.fit.setup import INFORMATIVE_WINDOW, FitSetup
 from pneusim.fit.initial import initial_starts
 from pneusim.fit.prediction_error import prediction_error_fit
 from pneusim.fit.tracking import filtered_states, process_std, run_filter
@@ -196,6 +198,34 @@ def test_recording_starting_mid_stick_slip_with_stops_reaches_noise():
     s = score(result, truth)
     assert result.converged_to_noise, result.normalised_residuals
     assert s["inside_3_sigma"] >= s["parameters"] - 1, s["z"]
+
+
+def test_prefit_window_moves_to_where_a_piston_resting_at_its_stop_starts_to_move():
+    """Paper 1, open-loop multisine with pressures (``s1018`` of the robustness set): the piston rests at
+    its end stop for the first 3.3 s, the whole first 2000-sample window.  The pre-fit there ended at noise
+    with the conductance at 0.52 and the Coulomb friction at 2.1 times the truth, the whole part's fit from
+    it at 4.2 times noise, and only the continuation route reached the noise (27.6 s).  The window now
+    moves to where the piston moves; the fit reaches the noise from the first trust region, every truth
+    within 3 sigma.  A recording that moves from its start keeps the first window."""
+    spec = next(s for s in robustness_cases(48) if s.seed == 1018)
+    assert (spec.rig_name, spec.kind, spec.loop, spec.pressures) == ("paper1-mre", "multisine", "open", True)
+    rig, truth, rec = make_case(spec)
+    setup = FitSetup(rec, rig, (), fit_free(True), None, None, None, 50)
+    start = setup.prefit_start(2000)
+    assert np.ptp(rec.position_m[:2000]) < INFORMATIVE_WINDOW * np.ptp(rec.position_m[:setup.n_est])
+    assert start > 0 and start % setup.seg == 0 and start + 2000 <= setup.n_est
+    assert np.ptp(rec.position_m[start:start + 2000]) == np.ptp(rec.position_m[:setup.n_est])
+    moving = next(s for s in robustness_cases(48) if s.seed == 1016)   # paper 1, closed-loop multisine
+    moving_rig, _, moving_rec = make_case(moving)
+    assert FitSetup(moving_rec, moving_rig, (), fit_free(True), None, None, None, 50).prefit_start(2000) == 0
+
+    result = fit_recording(rec, rig, free=fit_free(True), quiet=True)
+    attempts = result.solver["prefit_attempts"]
+    assert attempts[0]["window_start_sample"] == start
+    assert len(attempts) == 1 and [r["route"] for r in attempts[0]["fit_routes"]] == ["direct"], attempts
+    s = score(result, truth)
+    assert result.converged_to_noise, result.normalised_residuals
+    assert s["inside_3_sigma"] == s["parameters"], s["z"]
 
 
 @pytest.mark.minutes
