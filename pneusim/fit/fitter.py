@@ -7,7 +7,8 @@
 2. **split** — the first ``1 - validation_fraction`` of the recording
    estimates, the rest validates and is never seen by the optimiser;
 3. **pre-fit** — the multiple-shooting problem (:mod:`.shooting`) on a short
-   window, from the rig file's values, by trust-region least squares with the
+   window (the estimation part's first samples, or where the piston moves when it rests through those:
+   :meth:`.setup.FitSetup.prefit_start`), from the rig file's values, by trust-region least squares with the
    continuity between segments as a weighted residual; where that ends above noise and both
    pressures are recorded, also with the weight raised in turn, keeping the better route
    (:func:`.stages.prefit`), and through :data:`.stages.SHORT_SEGMENTS`-sample segments, kept when the
@@ -116,7 +117,8 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
     segment_samples : int
         Samples per shooting segment.
     prefit_samples : int
-        Length of the pre-fit window, samples.
+        Length of the pre-fit window, samples (``solver["prefit_attempts"][k]["window_start_sample"]`` says
+        where it began).
     starts : int
         Pre-fit starts tried at most (the first from the rig file's values).
     rtol : float

@@ -143,6 +143,21 @@ ending at 2.52 times noise).  Adopted after
 the pre-fit instead: Gauss-Newton steps on the constrained problem where the whole part's trust region
 ends at noise (:func:`~pneusim.fit.stages.settled`), the same fits as IPOPT's (19 of the set's 48 residuals
 moved, none by more than 4e-4; 46 of 48 at noise, 97.0 % within 3 sigma as before), 5.2 -> 4.0 s on the benchmark.
+
+Stop 38, speed again: the pre-fit's evaluation count is chaotic in the solver's options, and the benchmark's
+recording is one draw.  The exact trust-region subproblem with the Jacobian's column scaling took the
+benchmark's pre-fit from 35 to 17 evaluations (the fit 4.1 -> 2.9 s), but over 41 of the set's recordings the
+median pre-fit went from 15 to 20 evaluations (``s1004``: 9 -> 61-65 with either option alone), ``s1004`` ended
+at 1.052 with 3 of 7 truths within 3 sigma and ``s1031`` at 1.106; the exact subproblem alone: 23 evaluations
+on the benchmark, ``s1004`` 61; the column scaling alone: 21, ``s1027`` 3 of 7.  The first trust radius set
+through SciPy's public interface (the variables measured from the start, where SciPy's first radius is 1, and
+``x_scale`` the radius): 56, 24 and 50 evaluations for radii 0.3, 1 and 3.  The pre-fit at ``rtol`` 1e-5 or
+3e-6 (each evaluation 35 % or 15 % cheaper): 41 and 43 evaluations.  The pre-fit's Jacobian as a dense matrix
+for LSMR (the same problem, rounding apart): 40 evaluations and slower.  Segments of 25 or 100 samples in the
+pre-fit: 1.51 and 2.66 times noise.  A bounded Levenberg-Marquardt with geodesic acceleration (Transtrum and
+Sethna's remedy for narrow curved valleys; prototype, Levenberg's or Marquardt's damping): 37-81 evaluations,
+2.7-3.8 times noise.  Adopted instead, for robustness: the pre-fit's window moves to where the piston moves
+when it rests through the first one (:meth:`~pneusim.fit.setup.FitSetup.prefit_start`).
 """
 
 from __future__ import annotations
