@@ -147,3 +147,42 @@ def test_fit_pneusim_paper1_closed_loop_with_pressures(benchmark, paper1_case):
     benchmark.extra_info.update({"seconds": seconds, "largest_error": error,
                                  "normalised_residual": result.normalised_residual})
     assert result.converged_to_noise and error < 0.05
+
+
+@pytest.mark.benchmark(group="fit-sensitivities")
+@pytest.mark.parametrize("corrector", ["staggered", "augmented"])
+def test_sensitivity_evaluation(benchmark, case, corrector):
+    """One evaluation of the paper-2 fit's pre-fit window with sensitivities (its 40 segments of 50
+    samples, at the data sheet's values, one thread) by each corrector of
+    :class:`pneusim.solver.sensitivity.SensitivitySimulator`; the second prints the ratio and the
+    largest difference of the two corrector's position sensitivities (share of each column's range)."""
+    from pneusim.fit.initial import initial_starts
+    from pneusim.fit.setup import FitSetup
+    from pneusim.solver.sensitivity import SensitivitySimulator
+
+    rig, truth, recording = case
+    setup = FitSetup(recording, rig, (), None, None, None, None, 50)
+    pb, _, _ = setup.problem(2000, 1e-6, 1)
+    theta = setup.theta_start
+    starts = initial_starts(pb, theta, recording, 2000)
+    pb.close()
+    sim = SensitivitySimulator(pb.model, pb.free, pb.params_of(theta), setup.scales, rig.stroke_m, 1e-6,
+                               pb.x_scale, corrector=corrector)
+    assert sim.corrector == corrector
+    segments = [(pb.data.time_s[a], starts[j], pb.schedules[j], b - a + 1)
+                for j, (a, b) in enumerate(zip(pb.starts, pb.stops))]
+
+    def evaluate():
+        return [sim.run(t0, x0, schedule, n_out, True) for t0, x0, schedule, n_out in segments]
+
+    out = benchmark.pedantic(evaluate, rounds=5, iterations=1, warmup_rounds=1)
+    RESULTS[f"sensitivities {corrector}"] = (benchmark.stats.stats.median, out)
+    if corrector == "augmented" and "sensitivities staggered" in RESULTS:
+        staggered, reference = RESULTS["sensitivities staggered"]
+        ours = benchmark.stats.stats.median
+        difference = max(float(np.max(np.abs(S[:, 0, :] - S_ref[:, 0, :]).max(axis=0)
+                                      / np.maximum(np.abs(S_ref[:, 0, :]).max(axis=0), 1e-300)))
+                         for (_, S), (_, S_ref) in zip(out, reference))
+        print(f"\nsensitivities of the pre-fit window: augmented {1e3 * ours:.0f} ms, staggered "
+              f"{1e3 * staggered:.0f} ms -> {staggered / ours:.2f}x; largest difference of a position "
+              f"sensitivity {100 * difference:.2g} % of its column's range")

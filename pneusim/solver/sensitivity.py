@@ -25,7 +25,11 @@ from ..model import ActuatorModel
 from .backends import state_scales
 from .codegen import compile_functions
 
-__all__ = ["SensitivitySimulator", "command_schedule"]
+__all__ = ["SensitivitySimulator", "command_schedule", "BLOCK_MAX_STATES"]
+
+#: the augmented corrector's block solver handles models of up to this many states (small_dense.h's
+#: SMALL_DENSE_MAX_N)
+BLOCK_MAX_STATES = 8
 
 
 def command_schedule(time_s: np.ndarray, command_V: np.ndarray, start: int, stop: int, delay_s: float = 0.0,
@@ -102,11 +106,23 @@ class SensitivitySimulator:
     linear_algebra : str
         ``"small"`` (default) or ``"sundials"``: CVODES's vectors, Newton matrix and linear solver from
         ``small_vector.h``/``small_dense.h`` or SUNDIALS' own (the same doubles, slower; the tests' peer).
+    corrector : str
+        ``"staggered"`` (default): CVODES's staggered corrector.  ``"augmented"``: state and sensitivities
+        integrated as one state ``[x; vec(S)]`` by CVODES without its sensitivity module, the Newton
+        matrix's leading block ``I - gamma f_x`` factored and applied to every block (``small_dense.h``'s
+        block solver), set up at every step.  The same states to the tolerance and sensitivities as
+        accurate (position sensitivities on the paper-2 benchmark's pre-fit window against an rtol 1e-10
+        reference: median error 0.17 % of each column's range against 0.15 %, largest 3.3 % both), one
+        evaluation of that window in 63 ms against 123 ms on one thread (``benchmarks/test_bench_fit.py``).
+        Not the fit's default yet: every fit's path moves with it, and on the robustness set it kept 46 of
+        48 at noise but 323 of 336 truths within 3 sigma against 326, and the benchmark recording's first
+        pre-fit stopped at 4.14 times noise (see the README).  Models with more than
+        :data:`BLOCK_MAX_STATES` states, and ``linear_algebra="sundials"``, use the staggered corrector.
     """
 
     def __init__(self, model: ActuatorModel, free: Sequence[str], params: np.ndarray, scales: np.ndarray,
                  stroke_m: float, rtol: float = 1e-6, state_scale: np.ndarray | None = None,
-                 linear_algebra: str = "small"):
+                 linear_algebra: str = "small", corrector: str = "staggered"):
         from . import _cvodes_sensitivity as fast
 
         self.model = model
@@ -122,8 +138,14 @@ class SensitivitySimulator:
         kernels = _compiled_kernels(model, tuple(self.free))
         self._keep = kernels
         atol = np.ascontiguousarray(self.rtol * tolerance_scale)
+        if corrector not in ("augmented", "staggered"):
+            raise ValueError(f"corrector: 'augmented' or 'staggered', got {corrector!r}")
+        if linear_algebra != "small" or n > BLOCK_MAX_STATES:
+            corrector = "staggered"
+        self.corrector = corrector
         self._integrator = fast.SensitivityIntegrator(kernels, n, self.ns, self.params, self.weights,
-                                                      self.rtol, atol, linear_algebra=linear_algebra)
+                                                      self.rtol, atol, linear_algebra=linear_algebra,
+                                                      corrector=corrector)
         # S(t0) (n, ns): zero for the parameters, diag(x_scale) for the initial state
         self._s0 = np.zeros((n, self.ns))
         self._s0[:, self.n_free:] = np.diag(self.x_scale)
