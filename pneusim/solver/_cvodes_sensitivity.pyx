@@ -457,15 +457,21 @@ cdef class SensitivityIntegrator:
         cdef long m = t_stop.shape[0]
         cdef long o
         cdef realtype t = t0, tret = t0
-        cdef double* yp = N_VGetArrayPointer(self.y)
         cdef bint sens = sensitivities and ns > 0
-        if sens and self.mem_aug != NULL:
-            return self._run_augmented(t0, x0, s0, t_stop, u, out_index, x_out, s_out)
+        # with sensitivities, the augmented state [x; vec(S)] in its own CVODES memory, or CVODES's
+        # staggered corrector; without, the state alone (the staggered memory, sensitivities off)
+        cdef bint augmented = sens and self.mem_aug != NULL
+        cdef bint staggered = sens and not augmented
+        cdef void* mem = self.mem_aug if augmented else self.mem
+        cdef N_Vector y = self.y_aug if augmented else self.y
+        cdef double* yp = N_VGetArrayPointer(y)
         for i in range(n):
             yp[i] = x0[i]
-        if sens:
-            for j in range(ns):
-                for i in range(n):
+        for j in range(ns if sens else 0):
+            for i in range(n):
+                if augmented:
+                    yp[n + j * n + i] = s0[i, j]
+                else:
                     N_VGetArrayPointer(self.yS[j])[i] = s0[i, j]
         self.pb.message[0] = 0
         with nogil:
@@ -473,76 +479,34 @@ cdef class SensitivityIntegrator:
                 if k == 0 or u[k] != self.pb.u:
                     # a new start or a command jump: fresh BDF history from order 1
                     self.pb.u = u[k]
-                    flag = CVodeReInit(self.mem, t, self.y)
+                    flag = CVodeReInit(mem, t, y)
                     if flag < 0:
                         break
-                    if sens:
-                        flag = CVodeSensReInit(self.mem, CV_STAGGERED, self.yS)
-                    elif ns > 0:
-                        flag = CVodeSensToggleOff(self.mem)
+                    if staggered:
+                        flag = CVodeSensReInit(mem, CV_STAGGERED, self.yS)
+                    elif ns > 0 and not augmented:
+                        flag = CVodeSensToggleOff(mem)
                     if flag < 0:
                         break
                 # the integration stops exactly at every sample (stop time): no step straddles a jump
-                flag = CVodeSetStopTime(self.mem, t_stop[k])
+                flag = CVodeSetStopTime(mem, t_stop[k])
                 if flag < 0:
                     break
-                flag = CVode(self.mem, t_stop[k], self.y, &tret, CV_NORMAL)
+                flag = CVode(mem, t_stop[k], y, &tret, CV_NORMAL)
                 if flag < 0:
                     break
                 t = t_stop[k]
-                if sens:
-                    flag = CVodeGetSens(self.mem, &tret, self.yS)
+                if staggered:
+                    flag = CVodeGetSens(mem, &tret, self.yS)
                     if flag < 0:
                         break
                 o = out_index[k]
                 if o >= 0:
                     for i in range(n):
                         x_out[o, i] = yp[i]
-                    if sens:
-                        for j in range(ns):
-                            for i in range(n):
-                                s_out[o, i, j] = N_VGetArrayPointer(self.yS[j])[i]
-        message = self.pb.message.decode("utf-8", "replace") if self.pb.message[0] != 0 else ""
-        return (flag if flag < 0 else 0), float(tret), message
-
-    cdef _run_augmented(self, double t0, double[::1] x0, double[:, ::1] s0, double[::1] t_stop, double[::1] u,
-                        long[::1] out_index, double[:, ::1] x_out, double[:, :, ::1] s_out):
-        """:meth:`run` with sensitivities, on the augmented state ``[x; vec(S)]`` (``corrector="augmented"``):
-        the same schedule, restarts and outputs."""
-        cdef int n = self.pb.n, ns = self.pb.ns
-        cdef int i, j, k, flag = 0
-        cdef long m = t_stop.shape[0]
-        cdef long o
-        cdef realtype t = t0, tret = t0
-        cdef double* ya = N_VGetArrayPointer(self.y_aug)
-        for i in range(n):
-            ya[i] = x0[i]
-        for j in range(ns):
-            for i in range(n):
-                ya[n + j * n + i] = s0[i, j]
-        self.pb.message[0] = 0
-        with nogil:
-            for k in range(m):
-                if k == 0 or u[k] != self.pb.u:
-                    # a new start or a command jump: fresh BDF history from order 1
-                    self.pb.u = u[k]
-                    flag = CVodeReInit(self.mem_aug, t, self.y_aug)
-                    if flag < 0:
-                        break
-                flag = CVodeSetStopTime(self.mem_aug, t_stop[k])
-                if flag < 0:
-                    break
-                flag = CVode(self.mem_aug, t_stop[k], self.y_aug, &tret, CV_NORMAL)
-                if flag < 0:
-                    break
-                t = t_stop[k]
-                o = out_index[k]
-                if o >= 0:
-                    for i in range(n):
-                        x_out[o, i] = ya[i]
-                    for j in range(ns):
+                    for j in range(ns if sens else 0):
                         for i in range(n):
-                            s_out[o, i, j] = ya[n + j * n + i]
+                            s_out[o, i, j] = yp[n + j * n + i] if augmented else N_VGetArrayPointer(self.yS[j])[i]
         message = self.pb.message.decode("utf-8", "replace") if self.pb.message[0] != 0 else ""
         return (flag if flag < 0 else 0), float(tret), message
 
