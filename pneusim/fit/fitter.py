@@ -224,7 +224,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         for k, factors in enumerate(_START_FACTORS[:max(1, starts)]):
             theta0 = np.clip(theta_start * np.array([factors.get(name, 1.0) for name in free]), lower, upper)
             chained = initial_starts(pre_pb, theta0, window, pre_pb.data.n_samples)
-            if k == 0:
+            if k == 0 and pre_start == 0:
                 first_at_start = chained[0]   # the prediction-error route starts from here too
             v0 = pre_pb.join(theta0, chained)
             v_pre, rms_pre, info = prefit(pre_pb, v0, pre_lo, pre_hi)

@@ -202,12 +202,9 @@ cdef int _aug_rhs(realtype t, N_Vector y, N_Vector ydot, void* data) noexcept no
     if flag != 0:
         return flag
     pb.sens.arg[0] = yp
-    pb.sens.arg[3] = yp + pb.n
+    pb.sens.arg[3] = yp + pb.n      # S and S' in place: the augmented vectors hold them column-major
     pb.sens.res[0] = dp + pb.n
-    flag = pb.sens.fn(pb.sens.arg, pb.sens.res, pb.sens.iw, pb.sens.w, 0)
-    pb.sens.arg[3] = pb.s_in       # back to the staggered corrector's buffers
-    pb.sens.res[0] = pb.s_out
-    return flag
+    return pb.sens.fn(pb.sens.arg, pb.sens.res, pb.sens.iw, pb.sens.w, 0)
 
 
 cdef int _aug_jac(realtype t, N_Vector y, N_Vector fy, SUNMatrix J, void* data,
@@ -234,7 +231,9 @@ cdef int _sens(int ns, realtype t, N_Vector y, N_Vector ydot, N_Vector* yS, N_Ve
     cdef int n = pb.n
     for i in range(ns):
         memcpy(pb.s_in + i * n, N_VGetArrayPointer(yS[i]), n * sizeof(double))
-    pb.sens.arg[0] = N_VGetArrayPointer(y)     # the other arguments and the result are fixed buffers
+    pb.sens.arg[0] = N_VGetArrayPointer(y)
+    pb.sens.arg[3] = pb.s_in                   # S gathered into, and S' scattered from, contiguous buffers
+    pb.sens.res[0] = pb.s_out
     flag = pb.sens.fn(pb.sens.arg, pb.sens.res, pb.sens.iw, pb.sens.w, 0)
     for i in range(ns):
         memcpy(N_VGetArrayPointer(ySdot[i]), pb.s_out + i * n, n * sizeof(double))
@@ -328,15 +327,13 @@ cdef class SensitivityIntegrator:
         self.pb.message[0] = 0
         self.pb.s_in = <double*> malloc(max(n * ns, 1) * sizeof(double))
         self.pb.s_out = <double*> malloc(max(n * ns, 1) * sizeof(double))
-        # the kernels' fixed arguments: the held input, the parameters (updated in place), and for the
-        # sensitivity kernel its input/output buffers and column weights; the callbacks set only the state
+        # the kernels' fixed arguments: the held input, the parameters (updated in place), and the
+        # sensitivity kernel's column weights; the callbacks set the state and the sensitivity buffers
         fixed[0], fixed[1], fixed[2] = &self.pb.rhs, &self.pb.jac, &self.pb.sens
         for i in range(3):
             fixed[i].arg[1] = &self.pb.u
             fixed[i].arg[2] = self.pb.p
-        self.pb.sens.arg[3] = self.pb.s_in
         self.pb.sens.arg[4] = self.pb.weights
-        self.pb.sens.res[0] = self.pb.s_out
         if SUNContext_Create(NULL, &self.ctx) != 0:
             raise MemoryError("SUNContext_Create failed")
         if linear_algebra not in ("small", "sundials"):
@@ -352,16 +349,9 @@ cdef class SensitivityIntegrator:
         for i in range(n):
             N_VGetArrayPointer(self.atol)[i] = atol[i]
             N_VGetArrayPointer(self.y)[i] = 0.0
-        self.mem = CVodeCreate(CV_BDF, self.ctx)
-        _check(CVodeInit(self.mem, _rhs, 0.0, self.y), "CVodeInit")
-        _check(CVodeSVtolerances(self.mem, rtol, self.atol), "CVodeSVtolerances")
-        _check(CVodeSetUserData(self.mem, &self.pb), "CVodeSetUserData")
-        _check(CVodeSetErrHandlerFn(self.mem, _error, &self.pb), "CVodeSetErrHandlerFn")
-        _check(CVodeSetMaxNumSteps(self.mem, max_steps), "CVodeSetMaxNumSteps")
         self.A = SmallDenseMatrix(n, self.ctx) if small else SUNDenseMatrix(n, n, self.ctx)
         self.LS = SmallDenseLinearSolver(n, self.ctx) if small else SUNLinSol_Dense(self.y, self.A, self.ctx)
-        _check(CVodeSetLinearSolver(self.mem, self.LS, self.A), "CVodeSetLinearSolver")
-        _check(CVodeSetJacFn(self.mem, _jac), "CVodeSetJacFn")
+        self.mem = self._memory(_rhs, _jac, self.y, rtol, self.atol, max_steps, self.A, self.LS)
         self.sens_on = False
         self.yS = NULL
         if ns > 0:
@@ -397,18 +387,12 @@ cdef class SensitivityIntegrator:
             for i in range(self.pb.n_total):
                 N_VGetArrayPointer(self.y_aug)[i] = 0.0
                 N_VGetArrayPointer(self.atol_aug)[i] = atol[i] * dilution if i < n else 1e100
-            self.mem_aug = CVodeCreate(CV_BDF, self.ctx)
-            _check(CVodeInit(self.mem_aug, _aug_rhs, 0.0, self.y_aug), "CVodeInit")
-            _check(CVodeSVtolerances(self.mem_aug, rtol * dilution, self.atol_aug), "CVodeSVtolerances")
-            _check(CVodeSetUserData(self.mem_aug, &self.pb), "CVodeSetUserData")
-            _check(CVodeSetErrHandlerFn(self.mem_aug, _error, &self.pb), "CVodeSetErrHandlerFn")
-            _check(CVodeSetMaxNumSteps(self.mem_aug, max_steps), "CVodeSetMaxNumSteps")
             self.A_aug = SmallBlockMatrix(self.pb.n_total, n, self.ctx)
             self.LS_aug = SmallBlockLinearSolver(self.pb.n_total, n, self.ctx)
             if self.A_aug == NULL or self.LS_aug == NULL or self.pb.jac_tmp == NULL:
                 raise MemoryError()
-            _check(CVodeSetLinearSolver(self.mem_aug, self.LS_aug, self.A_aug), "CVodeSetLinearSolver")
-            _check(CVodeSetJacFn(self.mem_aug, _aug_jac), "CVodeSetJacFn")
+            self.mem_aug = self._memory(_aug_rhs, _aug_jac, self.y_aug, rtol * dilution, self.atol_aug, max_steps,
+                                        self.A_aug, self.LS_aug)
             # a fresh f_x and Newton matrix at every step: the sensitivities take no part in the Newton
             # convergence test, so they get the state's iterations; with the exact block that solves their
             # linear equations, where a matrix kept for 20 steps (CVODE's default) left some of them far off
@@ -416,6 +400,26 @@ cdef class SensitivityIntegrator:
             # staggered corrector's 3.3 %; now 3.3 %).  The block makes that cheap: a 4 x 4 Jacobian and LU.
             _check(CVodeSetLSetupFrequency(self.mem_aug, 1), "CVodeSetLSetupFrequency")
             _check(CVodeSetJacEvalFrequency(self.mem_aug, 1), "CVodeSetJacEvalFrequency")
+
+    cdef void* _memory(self, CVRhsFn rhs, CVLsJacFn jac, N_Vector y, double rtol, N_Vector atol, long max_steps,
+                       SUNMatrix A, SUNLinearSolver LS) except NULL:
+        """A CVODES memory (BDF, Newton) on ``rhs`` and ``jac`` with this problem as user data, our error
+        handler, the tolerances, the step limit and the linear solver ``LS`` on ``A``."""
+        cdef void* mem = CVodeCreate(CV_BDF, self.ctx)
+        if mem == NULL:
+            raise MemoryError("CVodeCreate failed")
+        try:
+            _check(CVodeInit(mem, rhs, 0.0, y), "CVodeInit")
+            _check(CVodeSVtolerances(mem, rtol, atol), "CVodeSVtolerances")
+            _check(CVodeSetUserData(mem, &self.pb), "CVodeSetUserData")
+            _check(CVodeSetErrHandlerFn(mem, _error, &self.pb), "CVodeSetErrHandlerFn")
+            _check(CVodeSetMaxNumSteps(mem, max_steps), "CVodeSetMaxNumSteps")
+            _check(CVodeSetLinearSolver(mem, LS, A), "CVodeSetLinearSolver")
+            _check(CVodeSetJacFn(mem, jac), "CVodeSetJacFn")
+        except BaseException:
+            CVodeFree(&mem)
+            raise
+        return mem
 
     def __dealloc__(self):
         if self.mem != NULL:

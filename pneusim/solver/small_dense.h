@@ -111,6 +111,37 @@ static void small_dense_getrs_any(const double *a, sunindextype n, const suninde
   SMALL_DENSE_GETRS_BODY(n)
 }
 
+/* LU of the column-major n-by-n a in place, the unrolled kernel for n up to SMALL_DENSE_MAX_N: 0, or k + 1 at
+ * a zero pivot in column k */
+static inline sunindextype small_dense_getrf(double *a, sunindextype n, sunindextype *p) {
+  switch (n) {
+    case 1: return small_dense_getrf_1(a, p);
+    case 2: return small_dense_getrf_2(a, p);
+    case 3: return small_dense_getrf_3(a, p);
+    case 4: return small_dense_getrf_4(a, p);
+    case 5: return small_dense_getrf_5(a, p);
+    case 6: return small_dense_getrf_6(a, p);
+    case 7: return small_dense_getrf_7(a, p);
+    case 8: return small_dense_getrf_8(a, p);
+    default: return small_dense_getrf_any(a, n, p);
+  }
+}
+
+/* b := A^-1 b with the LU small_dense_getrf left in a and p */
+static inline void small_dense_getrs(const double *a, sunindextype n, const sunindextype *p, double *b) {
+  switch (n) {
+    case 1: small_dense_getrs_1(a, p, b); break;
+    case 2: small_dense_getrs_2(a, p, b); break;
+    case 3: small_dense_getrs_3(a, p, b); break;
+    case 4: small_dense_getrs_4(a, p, b); break;
+    case 5: small_dense_getrs_5(a, p, b); break;
+    case 6: small_dense_getrs_6(a, p, b); break;
+    case 7: small_dense_getrs_7(a, p, b); break;
+    case 8: small_dense_getrs_8(a, p, b); break;
+    default: small_dense_getrs_any(a, n, p, b);
+  }
+}
+
 #define SMALL_DENSE_CONTENT(S) ((SmallDenseContent *)(S)->content)
 #define SMALL_DENSE_PIVOTS(c) ((c)->n > SMALL_DENSE_MAX_N ? (c)->big_pivots : (c)->pivots)
 
@@ -132,17 +163,7 @@ static int small_dense_setup(SUNLinearSolver S, SUNMatrix A) {
     c->last_flag = SUNLS_ILL_INPUT;
     return SUNLS_ILL_INPUT;
   }
-  switch (c->n) {
-    case 1: flag = small_dense_getrf_1(a, p); break;
-    case 2: flag = small_dense_getrf_2(a, p); break;
-    case 3: flag = small_dense_getrf_3(a, p); break;
-    case 4: flag = small_dense_getrf_4(a, p); break;
-    case 5: flag = small_dense_getrf_5(a, p); break;
-    case 6: flag = small_dense_getrf_6(a, p); break;
-    case 7: flag = small_dense_getrf_7(a, p); break;
-    case 8: flag = small_dense_getrf_8(a, p); break;
-    default: flag = small_dense_getrf_any(a, c->n, p);
-  }
+  flag = small_dense_getrf(a, c->n, p);
   c->last_flag = flag;
   /* a zero pivot: recoverable, CVODE cuts the step and sets up again (as SUNLinSol_Dense) */
   return flag > 0 ? SUNLS_LUFACT_FAIL : SUNLS_SUCCESS;
@@ -159,17 +180,7 @@ static int small_dense_solve(SUNLinearSolver S, SUNMatrix A, N_Vector x, N_Vecto
     return SUNLS_MEM_FAIL;
   }
   for (sunindextype i = 0; i < c->n; i++) xd[i] = bd[i];
-  switch (c->n) {
-    case 1: small_dense_getrs_1(a, p, xd); break;
-    case 2: small_dense_getrs_2(a, p, xd); break;
-    case 3: small_dense_getrs_3(a, p, xd); break;
-    case 4: small_dense_getrs_4(a, p, xd); break;
-    case 5: small_dense_getrs_5(a, p, xd); break;
-    case 6: small_dense_getrs_6(a, p, xd); break;
-    case 7: small_dense_getrs_7(a, p, xd); break;
-    case 8: small_dense_getrs_8(a, p, xd); break;
-    default: small_dense_getrs_any(a, c->n, p, xd);
-  }
+  small_dense_getrs(a, c->n, p, xd);
   c->last_flag = SUNLS_SUCCESS;
   return SUNLS_SUCCESS;
 }
@@ -286,16 +297,7 @@ static int small_block_setup(SUNLinearSolver S, SUNMatrix A) {
   }
   for (sunindextype j = 0; j < n; j++)
     for (sunindextype i = 0; i < n; i++) c->lu[j * n + i] = a[j * ld + i];
-  switch (n) {
-    case 1: flag = small_dense_getrf_1(c->lu, c->pivots); break;
-    case 2: flag = small_dense_getrf_2(c->lu, c->pivots); break;
-    case 3: flag = small_dense_getrf_3(c->lu, c->pivots); break;
-    case 4: flag = small_dense_getrf_4(c->lu, c->pivots); break;
-    case 5: flag = small_dense_getrf_5(c->lu, c->pivots); break;
-    case 6: flag = small_dense_getrf_6(c->lu, c->pivots); break;
-    case 7: flag = small_dense_getrf_7(c->lu, c->pivots); break;
-    default: flag = small_dense_getrf_8(c->lu, c->pivots);
-  }
+  flag = small_dense_getrf(c->lu, n, c->pivots);
   c->last_flag = flag;
   return flag > 0 ? SUNLS_LUFACT_FAIL : SUNLS_SUCCESS;
 }
@@ -311,18 +313,7 @@ static int small_block_solve(SUNLinearSolver S, SUNMatrix A, N_Vector x, N_Vecto
   }
   if (xd != bd)
     for (sunindextype k = 0; k < c->n_total; k++) xd[k] = bd[k];
-  for (sunindextype k = 0; k < c->n_total; k += n) {
-    switch (n) {
-      case 1: small_dense_getrs_1(c->lu, c->pivots, xd + k); break;
-      case 2: small_dense_getrs_2(c->lu, c->pivots, xd + k); break;
-      case 3: small_dense_getrs_3(c->lu, c->pivots, xd + k); break;
-      case 4: small_dense_getrs_4(c->lu, c->pivots, xd + k); break;
-      case 5: small_dense_getrs_5(c->lu, c->pivots, xd + k); break;
-      case 6: small_dense_getrs_6(c->lu, c->pivots, xd + k); break;
-      case 7: small_dense_getrs_7(c->lu, c->pivots, xd + k); break;
-      default: small_dense_getrs_8(c->lu, c->pivots, xd + k);
-    }
-  }
+  for (sunindextype k = 0; k < c->n_total; k += n) small_dense_getrs(c->lu, n, c->pivots, xd + k);
   c->last_flag = SUNLS_SUCCESS;
   return SUNLS_SUCCESS;
 }
