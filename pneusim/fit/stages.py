@@ -27,7 +27,7 @@ from .tracking import filtered_states
 
 __all__ = ["trust_region", "continuation", "two_routes", "well_above", "prefit", "full_fit", "polish", "settled",
            "short_segments_route", "tracked_route", "prediction_error_route", "PREFIT_DEFECT_WEIGHTS",
-           "FIT_DEFECT_WEIGHTS", "SHORT_SEGMENTS"]
+           "FIT_DEFECT_WEIGHTS", "SHORT_SEGMENTS", "PREFIT_RESTARTS"]
 
 #: continuity weights of the pre-fit's second route, in turn (see :func:`continuation`)
 PREFIT_DEFECT_WEIGHTS = (10.0, 1000.0)
@@ -60,10 +60,13 @@ GIVE_UP_CLIMB = (8.0, 5)
 #: ... and, from a start more than MODEL_SHORT times above noise, given up when at this iterate its objective
 #: is above the start's and its largest continuity defect above this fraction of the start's (:func:`polish`)
 GIVE_UP_STALL = (8, 0.8)
+#: the pre-fit's fresh trust regions at most after a stop on the step tolerance alone above noise (see
+#: :func:`trust_region` and :func:`prefit`)
+PREFIT_RESTARTS = 1
 
 
 def trust_region(pb: ShootingProblem, v0, lower, upper, max_evaluations: int = 80, defect_weight: float = 1000.0,
-            tolerance: float = 1e-4):
+            tolerance: float = 1e-4, restarts: int = 0):
     """Trust-region least squares (SciPy's ``trf`` with the exact sparse Jacobian) on the shooting
     problem with the continuity defects as heavily weighted residuals.
 
@@ -71,6 +74,10 @@ def trust_region(pb: ShootingProblem, v0, lower, upper, max_evaluations: int = 8
     from the optimum (parameters tens of percent off) that lands in local minima of the stick-slip
     landscape.  A trust region limits every step to where the linearisation holds, which is what a
     start far away needs; IPOPT then solves the exact constrained problem from here.
+
+    ``restarts``: fresh trust regions at most, each from where the last stopped, after a stop on SciPy's
+    step tolerance alone above noise (see below); ``max_evaluations`` caps them all together, and ``info``
+    counts them (``"restarts"``).
     """
     from scipy import sparse
     from scipy.optimize import least_squares
@@ -98,21 +105,34 @@ def trust_region(pb: ShootingProblem, v0, lower, upper, max_evaluations: int = 8
         jr, jg = pb.jacobians(v)
         return sparse.vstack([jr, defect_weight * jg]).tocsr()
 
-    v0 = clip_inside(v0, lower, upper)
-    try:
-        fit = least_squares(fun, v0, jac=jac, bounds=(lower, upper), method="trf", x_scale=1.0,
-                            tr_solver="lsmr", max_nfev=max_evaluations, xtol=tolerance, ftol=tolerance)
-    except ValueError as exc:
-        if "not finite in the initial point" not in str(exc):
-            raise
-        raise FitError("the model could not be integrated at the trust region's start point (its parameters "
-                       "and segment start states)") from None
-    r = fun(fit.x)[:n_r]
-    rms = float(np.sqrt(np.mean(r ** 2))) if np.all(np.isfinite(r)) else float("inf")
+    v = clip_inside(v0, lower, upper)
+    evaluations = jacobians = restarted = 0
+    while True:
+        try:
+            fit = least_squares(fun, v, jac=jac, bounds=(lower, upper), method="trf", x_scale=1.0, tr_solver="lsmr",
+                                max_nfev=max_evaluations - evaluations, xtol=tolerance, ftol=tolerance)
+        except ValueError as exc:
+            if "not finite in the initial point" not in str(exc):
+                raise
+            raise FitError("the model could not be integrated at the trust region's start point (its parameters "
+                           "and segment start states)") from None
+        evaluations += int(fit.nfev)
+        jacobians += int(fit.njev or 0)
+        v = fit.x
+        r = fun(v)[:n_r]
+        rms = float(np.sqrt(np.mean(r ** 2))) if np.all(np.isfinite(r)) else float("inf")
+        # SciPy's step tolerance is relative to the norm of the whole vector, which the segment states
+        # dominate: a region shrunk by a few rejected steps in the penalty's curved valley ends the run while
+        # the cost still falls by more than the cost tolerance per step (status 3 alone).  Above noise that
+        # is a stall, not convergence: start again from there with a fresh region
+        if not (fit.status == 3 and rms > ABOVE_NOISE_WARNING and restarted < restarts
+                and evaluations < max_evaluations):
+            break
+        restarted += 1
     status = {-1: "improper input", 0: "evaluation limit", 1: "gradient tolerance", 2: "cost tolerance",
               3: "step tolerance", 4: "cost and step tolerance"}.get(fit.status, str(fit.status))
-    return fit.x, rms, {"status": status, "evaluations": int(fit.nfev), "jacobians": int(fit.njev or 0),
-                        "seconds": time.perf_counter() - started}
+    return v, rms, {"status": status, "evaluations": evaluations, "jacobians": jacobians, "restarts": restarted,
+                    "seconds": time.perf_counter() - started}
 
 
 def continuation(pb: ShootingProblem, v0, lower, upper, weights=PREFIT_DEFECT_WEIGHTS, **options):
@@ -147,7 +167,7 @@ def well_above(rms: float, reference: float) -> bool:
 
 
 def two_routes(pb: ShootingProblem, v0, lower, upper, weights, second_route: bool = True,
-               reference: float = 0.0, finish=None, max_evaluations: int = 80):
+               reference: float = 0.0, finish=None, max_evaluations: int = 80, restarts: int = 0):
     """The trust region from ``v0`` with continuity weighted ``weights[-1]`` at once (the *direct*
     route); when that ends above the noise level (:data:`~pneusim.fit.result.ABOVE_NOISE_WARNING`)
     and :func:`well_above` ``reference``, and ``second_route`` allows, also the
@@ -163,11 +183,14 @@ def two_routes(pb: ShootingProblem, v0, lower, upper, weights, second_route: boo
     continuation 1.73 after 62 evaluations of both together, then IPOPT 0.999 in 8 iterations from
     the direct route's point): the continuation was paid for nothing.
 
+    ``restarts``: each trust-region run's fresh starts after a stall (:func:`trust_region`).
+
     Returns ``(v, rms, info)`` like :func:`trust_region`; ``info["route"]`` names the one kept and
     ``info["routes"]`` lists each route's residual, evaluations and seconds; ``info["finished"]``
     holds ``finish``'s ``(result, rms)`` on the direct route when it was tried.
     """
-    v, rms, info = trust_region(pb, v0, lower, upper, defect_weight=weights[-1], max_evaluations=max_evaluations)
+    v, rms, info = trust_region(pb, v0, lower, upper, defect_weight=weights[-1], max_evaluations=max_evaluations,
+                                restarts=restarts)
     routes = [{"route": "direct", "rms_normalised": rms, "evaluations": info["evaluations"],
                "seconds": info["seconds"]}]
     best = (v, rms, {**info, "route": "direct"})
@@ -186,7 +209,8 @@ def two_routes(pb: ShootingProblem, v0, lower, upper, weights, second_route: boo
             routes[0]["second_route_skipped"] = (f"IPOPT from it ends {finished[1]:.3g} times above noise "
                                                  f"(more than {MODEL_SHORT:g}): the model lacks physics here")
     if wanted:
-        v_c, rms_c, info_c = continuation(pb, v0, lower, upper, weights=weights, max_evaluations=max_evaluations)
+        v_c, rms_c, info_c = continuation(pb, v0, lower, upper, weights=weights, max_evaluations=max_evaluations,
+                                          restarts=restarts)
         routes.append({"route": "continuation", "rms_normalised": rms_c, "evaluations": info_c["evaluations"],
                        "seconds": info_c["seconds"]})
         # kept only when clearly better: two routes ending at the same residual (an effect the model
@@ -216,11 +240,15 @@ def prefit(pb: ShootingProblem, v0, lower, upper, second_route: bool | None = No
     start tens of percent off a decoupled segment trades them for the valve's critical pressure
     ratio: only the direct route is used (paper 2, closed-loop multisine: 0.98 against 3.07).
     ``second_route`` overrides that choice; ``max_evaluations`` caps each trust-region run.
+
+    A run that stops on the step tolerance alone above noise starts afresh from there
+    (:data:`PREFIT_RESTARTS`, :func:`trust_region`): the benchmark recording's pre-fit stopped so at 4.14
+    times noise while its cost still fell 0.3 % a step; restarted, it ends at 0.979 after 17 more evaluations.
     """
     if second_route is None:
         second_route = {"pressure_a_Pa", "pressure_b_Pa"} <= set(pb.data.signals)
     return two_routes(pb, v0, lower, upper, PREFIT_DEFECT_WEIGHTS, second_route=second_route,
-                      max_evaluations=max_evaluations)
+                      max_evaluations=max_evaluations, restarts=PREFIT_RESTARTS)
 
 
 def short_segments_route(short, pb: ShootingProblem, lower, upper, theta0, v, rms, recording):

@@ -107,22 +107,20 @@ class SensitivitySimulator:
         ``"small"`` (default) or ``"sundials"``: CVODES's vectors, Newton matrix and linear solver from
         ``small_vector.h``/``small_dense.h`` or SUNDIALS' own (the same doubles, slower; the tests' peer).
     corrector : str
-        ``"staggered"`` (default): CVODES's staggered corrector.  ``"augmented"``: state and sensitivities
-        integrated as one state ``[x; vec(S)]`` by CVODES without its sensitivity module, the Newton
-        matrix's leading block ``I - gamma f_x`` factored and applied to every block (``small_dense.h``'s
-        block solver), set up at every step.  The same states to the tolerance and sensitivities as
-        accurate (position sensitivities on the paper-2 benchmark's pre-fit window against an rtol 1e-10
-        reference: median error 0.17 % of each column's range against 0.15 %, largest 3.3 % both), one
-        evaluation of that window in 63 ms against 123 ms on one thread (``benchmarks/test_bench_fit.py``).
-        Not the fit's default yet: every fit's path moves with it, and on the robustness set it kept 46 of
-        48 at noise but 323 of 336 truths within 3 sigma against 326, and the benchmark recording's first
-        pre-fit stopped at 4.14 times noise (see the README).  Models with more than
-        :data:`BLOCK_MAX_STATES` states, and ``linear_algebra="sundials"``, use the staggered corrector.
+        ``"augmented"`` (default): state and sensitivities integrated as one state ``[x; vec(S)]`` by CVODES
+        without its sensitivity module, the Newton matrix's leading block ``I - gamma f_x`` factored and
+        applied to every block (``small_dense.h``'s block solver), set up at every step.  ``"staggered"``:
+        CVODES's staggered corrector.  The same states to the tolerance and sensitivities as accurate
+        (position sensitivities on the paper-2 benchmark's pre-fit window against an rtol 1e-10 reference:
+        median error 0.17 % of each column's range against 0.15 %, largest 3.3 % both); one evaluation of
+        that window takes 63 ms against 123 ms on one thread (``benchmarks/test_bench_fit.py``).  Models with
+        more than :data:`BLOCK_MAX_STATES` states, and ``linear_algebra="sundials"``, use the staggered
+        corrector.
     """
 
     def __init__(self, model: ActuatorModel, free: Sequence[str], params: np.ndarray, scales: np.ndarray,
                  stroke_m: float, rtol: float = 1e-6, state_scale: np.ndarray | None = None,
-                 linear_algebra: str = "small", corrector: str = "staggered"):
+                 linear_algebra: str = "small", corrector: str = "augmented"):
         from . import _cvodes_sensitivity as fast
 
         self.model = model
