@@ -158,6 +158,23 @@ pre-fit: 1.51 and 2.66 times noise.  A bounded Levenberg-Marquardt with geodesic
 Sethna's remedy for narrow curved valleys; prototype, Levenberg's or Marquardt's damping): 37-81 evaluations,
 2.7-3.8 times noise.  Adopted instead, for robustness: the pre-fit's window moves to where the piston moves
 when it rests through the first one (:meth:`~pneusim.fit.setup.FitSetup.prefit_start`).
+
+Stop 39, the cost of an evaluation instead of their count: the augmented sensitivity corrector
+(:class:`~pneusim.solver.sensitivity.SensitivitySimulator`) is the default, with one fresh trust region
+in the pre-fit after a stall above noise (:func:`~pneusim.fit.stages.prefit`).  The whole set, two fits at a
+time: 46 of 48 at noise (as before), 323 of 336 truths within 3 sigma (326 before: ``s1012`` 7 -> 3 of 7 at
+1.018 -> 1.063 times noise, a basin the staggered corrector missed; ``s1031`` 4 -> 5), median 2.3 s against
+3.9 s per fit, mean 13.3 s against 18.6 s.  The corrector alone: 10.2 s mean and 2.0 s median, the same 323,
+but the fit benchmark's pre-fit stalled at 4.14 times noise (16.2 s in all, the fresh start's case; 2.8 s
+with it).  The fresh start costs the set's pre-fits 1814 evaluations against 1415 (``s1002``, pressures
+recorded, stalls in both pre-fit routes: 48 -> 80 evaluations, 4.7 -> 28.3 s to the same answer).
+Measured and not adopted: up to three fresh starts while each lowers the residual by 2 % (320 of 336:
+``s1027`` 7 -> 3, ``s1031`` 5 -> 6; mean 13.9 s); the
+pre-fit at ``rtol`` 1e-5 with the augmented corrector (28 of the 49 pre-fits within 1.1 times noise against
+33); a 1000-sample pre-fit window (32, median 19 evaluations against 16); the direct route as a continuation
+through continuity weights 100 and 1000 (staggered corrector: 74 evaluations on the benchmark against 35,
+more on most); the states' trust-region scale ``x_scale`` = 100 (staggered: the benchmark's pre-fit stops at
+2.59 times noise, the set's median pre-fit 19 evaluations against 14).
 """
 
 from __future__ import annotations
