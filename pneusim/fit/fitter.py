@@ -12,7 +12,7 @@
    continuity between segments as a weighted residual; where that ends above noise and both
    pressures are recorded, also with the weight raised in turn, keeping the better route
    (:func:`.stages.prefit`), and through :data:`.stages.SHORT_SEGMENTS`-sample segments, kept when the
-   pre-fit's own problem from there ends clearly lower (:func:`.stages.short_segments_route`);
+   pre-fit's own problem from there ends clearly lower (:func:`.routes.short_segments_route`);
 4. **fit** — the whole estimation part from the pre-fit: trust region (where
    that ends above noise and well above the pre-fit, also with the continuity weight raised in turn:
    :func:`.stages.full_fit`), then the exact constrained problem: by Gauss-Newton steps where the trust
@@ -25,11 +25,11 @@
    where the best fit still ends above noise, but neither it nor every pre-fit more than
    :data:`.stages.MODEL_SHORT` times above it: every segment started from the state an extended
    Kalman filter tracks at that fit's parameters (:mod:`.tracking`), the trust region with the
-   continuity weight raised in turn, then IPOPT, kept when lower (:func:`.stages.tracked_route`;
+   continuity weight raised in turn, then IPOPT, kept when lower (:func:`.routes.tracked_route`;
    ``solver["tracked_route"]``); where it still ends above noise (however far): least squares on the
    innovations of that filter from the start (:mod:`.prediction_error`), a landscape smooth where the
    shooting problem's is rippled by every stick-slip, then the same tracked route from there, kept when
-   lower (:func:`.stages.prediction_error_route`; ``solver["prediction_error_route"]``);
+   lower (:func:`.routes.prediction_error_route`; ``solver["prediction_error_route"]``);
 5. **uncertainty** — the Gauss-Newton covariance of the estimates with the
    segment states as nuisance parameters, each signal weighted by its residual
    standard deviation (:mod:`.uncertainty`); standard errors, correlations and
@@ -64,8 +64,8 @@ from .initial import better_first_state, initial_starts
 from .result import ABOVE_NOISE_WARNING, FitResult, ParameterEstimate
 from .setup import FitSetup, _name
 from .shooting import ShootingProblem, position_reading
-from .stages import (MODEL_SHORT, PENALTY_WEIGHT, SHORT_SEGMENTS, full_fit, polish, prediction_error_route, prefit,
-                     settled, short_segments_route, tracked_route, trust_region, well_above)
+from .routes import prediction_error_route, short_segments_route, tracked_route
+from .stages import MODEL_SHORT, PENALTY_WEIGHT, SHORT_SEGMENTS, full_fit, polish, prefit, settled, trust_region, well_above
 from .threads import one_blas_thread
 from .uncertainty import covariance
 from .warm_start import warm_states

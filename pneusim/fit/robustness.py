@@ -95,7 +95,7 @@ the filter's states at the segment starts bring the window from 8.29 (chained) t
 grid search of every segment gave in 19 s.  At the data sheet's parameters they do not help (``s1007``
 62.7 chained against 50-109 filtered, ``s1027`` 43.8 against 44-74): the model must be close first.  Adopted:
 after a fit that ends above noise, every segment started from the filter's states at that fit's parameters,
-then the continuation (:func:`~pneusim.fit.stages.tracked_route`).  ``s1027`` goes from 1.63 to 0.77 with
+then the continuation (:func:`~pneusim.fit.routes.tracked_route`).  ``s1027`` goes from 1.63 to 0.77 with
 all seven truths within 3 sigma (all within 1.2 % of the truth); ``s1031`` 1.21 -> 1.17, ``s1017`` 4.03 ->
 3.87; ``s1006`` (pressures recorded) is not lowered (1.34 against 1.31), and ``s1007`` and ``s1030`` are not
 tried (every pre-fit more than 5 times above noise).  Measured and not adopted: the same route in the
@@ -111,7 +111,7 @@ minimum at the truth (whitened innovations 30.5, 21.8, 4.0, 0.90 at 0, 0.5, 0.9,
 squares on the whitened innovations from the data sheet, with the process noise lowered in turn, end within 1
 % of every truth on ``s1030``, ``s1007`` and ``s1017`` in 10-20 s. Adopted: after every other stage, a fit
 still above noise runs that from its start, then the tracked route from its parameters, kept when lower
-(:func:`~pneusim.fit.stages.prediction_error_route`): ``s1007`` 5.79 -> 0.87 and ``s1030`` 9.74 -> 0.99 with 7
+(:func:`~pneusim.fit.routes.prediction_error_route`): ``s1007`` 5.79 -> 0.87 and ``s1030`` 9.74 -> 0.99 with 7
 of 7 truths within 3 sigma, ``s1031`` 1.17 -> 0.96 (4 of 7), ``s1006`` 1.44 -> 1.105 (7 of 7; 1.02 over
 position and pressures together, the position alone just above 1.1), ``s1017`` not lowered (its filter ends at
 3.7 times its noise level in a basin with the Stribeck velocity at 5 times the truth; once, with the filter's

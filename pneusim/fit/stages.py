@@ -17,17 +17,13 @@ import time
 import numpy as np
 
 from ..errors import FitError
-from .initial import initial_starts
 from .nlp import IpoptResult, solve_ipopt
 from .parameters import clip_inside
-from .prediction_error import prediction_error_fit
 from .result import ABOVE_NOISE_WARNING
 from .shooting import ShootingProblem
-from .tracking import filtered_states
 
 __all__ = ["trust_region", "continuation", "two_routes", "well_above", "prefit", "full_fit", "polish", "settled",
-           "short_segments_route", "tracked_route", "prediction_error_route", "PREFIT_DEFECT_WEIGHTS",
-           "FIT_DEFECT_WEIGHTS", "SHORT_SEGMENTS", "PREFIT_RESTARTS"]
+           "PREFIT_DEFECT_WEIGHTS", "FIT_DEFECT_WEIGHTS", "SHORT_SEGMENTS", "PREFIT_RESTARTS"]
 
 #: continuity weights of the pre-fit's second route, in turn (see :func:`continuation`)
 PREFIT_DEFECT_WEIGHTS = (10.0, 1000.0)
@@ -255,112 +251,6 @@ def prefit(pb: ShootingProblem, v0, lower, upper, second_route: bool | None = No
         second_route = {"pressure_a_Pa", "pressure_b_Pa"} <= set(pb.data.signals)
     return two_routes(pb, v0, lower, upper, PREFIT_DEFECT_WEIGHTS, second_route=second_route,
                       max_evaluations=max_evaluations, restarts=PREFIT_RESTARTS)
-
-
-def short_segments_route(short, pb: ShootingProblem, lower, upper, theta0, v, rms, recording):
-    """The pre-fit's route through :data:`SHORT_SEGMENTS`-sample segments, for a recording with both
-    pressures whose pre-fit (``v``, normalised residual ``rms`` on problem ``pb``) ended above noise but not so
-    far that the model lacks physics: :func:`prefit` on ``short = (problem, lower, upper)`` (the same window
-    in short segments) from the same start ``theta0``, then :func:`prefit` on ``pb`` from its parameters
-    with each segment starting from the measured or the carried state (:func:`.initial.initial_starts`'
-    ``choose_starts``).  Kept when that ends :data:`CLEARLY_BETTER` times below ``rms`` on the same problem.
-
-    Returns ``(v, rms, info)``: the kept point and residual on ``pb``, and ``info`` with the short pre-fit's
-    residual, the route's residual on ``pb``, whether it was kept and its seconds.
-    """
-    started = time.perf_counter()
-    short_pb, short_lo, short_hi = short
-    try:
-        v_short = short_pb.join(theta0, initial_starts(short_pb, theta0, recording, short_pb.data.n_samples))
-        v_short, rms_short, _ = prefit(short_pb, v_short, short_lo, short_hi)
-        theta_short, _ = short_pb.split(v_short)
-    finally:
-        short_pb.close()
-    starts = initial_starts(pb, theta_short, recording, pb.data.n_samples, choose_starts=True)
-    v_route, rms_route, _ = prefit(pb, pb.join(theta_short, starts), lower, upper)
-    kept = bool(rms_route * CLEARLY_BETTER < rms)
-    info = {"rms_short_normalised": rms_short, "rms_normalised": rms_route, "kept": kept,
-            "seconds": time.perf_counter() - started}
-    return (v_route, rms_route, info) if kept else (v, rms, info)
-
-
-#: rounds of :func:`tracked_route` at most
-TRACKED_ROUNDS = 2
-
-
-def tracked_route(pb: ShootingProblem, v, lower, upper, rms: float, finish):
-    """From a fit ``v`` that ended above noise (normalised residual ``rms`` on ``pb``): every segment
-    started from the state an extended Kalman filter tracks at the fit's parameters
-    (:func:`.tracking.filtered_states`), then the :func:`continuation` through :data:`FIT_DEFECT_WEIGHTS`;
-    again from there while it lowers the residual, :data:`TRACKED_ROUNDS` rounds at most; then ``finish``
-    (``v -> (IPOPT result, normalised rms)``: :func:`polish`) on the best point when a round lowered it.
-
-    Why: on a recording whose piston stick-slips from sample to sample (paper 2, open loop) a segment
-    started from the chained simulation leaves the recorded slip pattern within seconds even at the
-    true parameters, and the trust region then settles where the parameters make up for the wrong
-    slips (the robustness set's ``s1027``: 1.63 times noise, the Stribeck velocity at 0.54 and the
-    viscous friction at 0.64 of the truth).  From the filtered starts the segments follow their own
-    samples, and the parameters what all of them say together.
-
-    Returns ``(result, info)``: ``finish``'s result (None when no round lowered the residual), and
-    ``info`` with each round's residual, evaluations and seconds, and the finished residual.
-    """
-    best, rounds = (v, rms), []
-    for _ in range(TRACKED_ROUNDS):
-        started = time.perf_counter()
-        theta, starts = pb.split(best[0])
-        filtered = filtered_states(pb, theta, starts[0])[pb.starts]
-        v_new, rms_new, info = continuation(pb, pb.join(theta, filtered), lower, upper, weights=FIT_DEFECT_WEIGHTS)
-        rounds.append({"rms_normalised": rms_new, "evaluations": info["evaluations"],
-                       "seconds": time.perf_counter() - started})
-        if not rms_new < best[1]:
-            break
-        best = (v_new, rms_new)
-        if rms_new <= ABOVE_NOISE_WARNING:
-            break
-    info = {"rounds": rounds, "seconds": sum(r["seconds"] for r in rounds)}
-    if not best[1] < rms:
-        return None, info
-    done, info["finished_rms_normalised"] = finish(best[0])
-    return done, info
-
-
-#: the prediction-error route goes on to the shooting problem only where the filter's whitened innovations
-#: end at most this many times their noise-level rms of 1 (see :func:`prediction_error_route`)
-PLAUSIBLE_INNOVATIONS = 2.0
-
-
-def prediction_error_route(window: ShootingProblem, pb: ShootingProblem, lower, upper, theta0, x_first,
-                           rms: float, finish):
-    """From the start ``theta0`` (scaled free parameters; ``x_first`` the first state, SI): the prediction-error
-    fit on the pre-fit's ``window`` (:func:`.prediction_error.prediction_error_fit`), then, from its parameters
-    and first state, :func:`tracked_route` on the whole estimation part ``pb`` against the best fit so far
-    (normalised residual ``rms``), ``finish`` (IPOPT) on its best point.
-
-    Why: where the piston stick-slips from sample to sample the shooting problem's landscape is rippled by
-    every mistimed slip and the pre-fit from a start tens of percent off stops in a wrong basin; the filter's
-    innovations are smooth in the parameters (see :mod:`.prediction_error`).  The shooting problem still
-    decides: the route's fit is kept only where IPOPT's objective is lower than the best fit's.  Given up
-    where the filter's innovations end a stage more than :data:`PLAUSIBLE_INNOVATIONS` times above their
-    noise level: a filter that cannot predict the recording one sample ahead says the model lacks physics
-    (practice2's nominal fits of recordings with an effect left out: 4.8-17, 8.6-164; the robustness set's
-    chaotic recordings the model explains: 0.86-1.12 at the last stage).
-
-    Returns ``(result, info)``: ``finish``'s result (None where the route stopped or no round lowered the
-    residual), and ``info`` with the prediction-error fit's stages, its parameters, the tracked route's
-    rounds and seconds.
-    """
-    started = time.perf_counter()
-    theta, first, info = prediction_error_fit(window, theta0, x_first, lower[:pb.n_free], upper[:pb.n_free],
-                                              give_up_above=PLAUSIBLE_INNOVATIONS)
-    info = {"prediction_error": info, "theta": theta.tolist()}
-    done = None
-    if info["prediction_error"]["rms_innovations"] <= PLAUSIBLE_INNOVATIONS:
-        starts = np.tile(first, (pb.n_segments, 1))   # only the first is used: the filter tracks the rest
-        done, tracked = tracked_route(pb, pb.join(theta, starts), lower, upper, rms, finish)
-        info.update(rounds=tracked["rounds"], finished_rms_normalised=tracked.get("finished_rms_normalised"))
-    info["seconds"] = time.perf_counter() - started
-    return done, info
 
 
 def full_fit(pb: ShootingProblem, v0, lower, upper, prefit_rms: float, finish=None):

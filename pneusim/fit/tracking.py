@@ -9,7 +9,7 @@ states afresh on a grid (:func:`.initial._hidden_state`) brings the window to 0.
 filtering the whole window once, sample by sample, with the position (and pressures) correcting the
 model's state after every step, gives 0.91 in 0.4 s.  The filter only helps near the truth: at the data
 sheet's parameters (tens of percent off) its starts fit no better than the chained ones, so the fitter
-uses it after a fit, from that fit's parameters (:func:`.stages.tracked_route`).
+uses it after a fit, from that fit's parameters (:func:`.routes.tracked_route`).
 
 The filter is :class:`filterpy.kalman.ExtendedKalmanFilter`'s update; its prediction is one sample of
 the fit's own integrator (:class:`~pneusim.solver.sensitivity.SensitivitySimulator`, the held command and

@@ -74,6 +74,7 @@ cdef extern from "small_dense.h":
     SUNLinearSolver SmallBlockLinearSolver(sunindextype n_total, sunindextype n, SUNContext context)
     SUNMatrix SmallBlockMatrix(sunindextype n_total, sunindextype n, SUNContext context)
     SUNMatrix SmallDenseMatrix(sunindextype n, SUNContext context)
+    enum: SMALL_DENSE_MAX_N
 
 cdef extern from "small_vector.h":
     # SUNDIALS' serial vector with its per-step and fused operations in one call each (the same doubles)
@@ -134,6 +135,10 @@ cdef extern from "cvodes/cvodes_ls.h":
 # Since then the vector operations (fused ones included) are small_vector.h's and the dense factor,
 # solve, copy and I - gamma J small_dense.h's: the same doubles, the paper-2 benchmark fit 11.2 -> 9.3 s
 # with small_dense.h, -> 4.9 s with both (stop 32).
+
+#: the augmented corrector's block solver handles models of up to this many states (small_dense.h's unrolled
+#: kernels); :class:`pneusim.solver.sensitivity.SensitivitySimulator` falls back to the staggered one above it
+BLOCK_MAX_STATES = SMALL_DENSE_MAX_N
 
 ctypedef long long casadi_int
 ctypedef int (*casadi_fn)(const double** arg, double** res, casadi_int* iw, double* w, int mem) noexcept nogil

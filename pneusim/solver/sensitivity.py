@@ -25,11 +25,7 @@ from ..model import ActuatorModel
 from .backends import state_scales
 from .codegen import compile_functions
 
-__all__ = ["SensitivitySimulator", "command_schedule", "BLOCK_MAX_STATES"]
-
-#: the augmented corrector's block solver handles models of up to this many states (small_dense.h's
-#: SMALL_DENSE_MAX_N)
-BLOCK_MAX_STATES = 8
+__all__ = ["SensitivitySimulator", "command_schedule"]
 
 
 def command_schedule(time_s: np.ndarray, command_V: np.ndarray, start: int, stop: int, delay_s: float = 0.0,
@@ -114,8 +110,8 @@ class SensitivitySimulator:
         (position sensitivities on the paper-2 benchmark's pre-fit window against an rtol 1e-10 reference:
         median error 0.17 % of each column's range against 0.15 %, largest 3.3 % both); one evaluation of
         that window takes 63 ms against 123 ms on one thread (``benchmarks/test_bench_fit.py``).  Models with
-        more than :data:`BLOCK_MAX_STATES` states, and ``linear_algebra="sundials"``, use the staggered
-        corrector.
+        more than :data:`._cvodes_sensitivity.BLOCK_MAX_STATES` (8) states, and ``linear_algebra="sundials"``,
+        use the staggered corrector.
     """
 
     def __init__(self, model: ActuatorModel, free: Sequence[str], params: np.ndarray, scales: np.ndarray,
@@ -138,7 +134,7 @@ class SensitivitySimulator:
         atol = np.ascontiguousarray(self.rtol * tolerance_scale)
         if corrector not in ("augmented", "staggered"):
             raise ValueError(f"corrector: 'augmented' or 'staggered', got {corrector!r}")
-        if linear_algebra != "small" or n > BLOCK_MAX_STATES:
+        if linear_algebra != "small" or n > fast.BLOCK_MAX_STATES:
             corrector = "staggered"
         self.corrector = corrector
         self._integrator = fast.SensitivityIntegrator(kernels, n, self.ns, self.params, self.weights,
