@@ -15,6 +15,7 @@ import os
 import time
 
 import numpy as np
+from scipy.sparse.linalg import LinearOperator
 
 from ..errors import FitError
 from .nlp import IpoptResult, solve_ipopt
@@ -99,7 +100,7 @@ def trust_region(pb: ShootingProblem, v0, lower, upper, max_evaluations: int = 8
             raise FitError("the model could not be integrated at a trust-region trial point (its parameters "
                            "and segment start states)")
         jr, jg = pb.jacobians(v)
-        return sparse.vstack([jr, defect_weight * jg]).tocsr()
+        return _StackedJacobian(sparse.vstack([jr, defect_weight * jg]).tocsr())
 
     v = clip_inside(v0, lower, upper)
     evaluations = jacobians = restarted = 0
@@ -129,6 +130,33 @@ def trust_region(pb: ShootingProblem, v0, lower, upper, max_evaluations: int = 8
               3: "step tolerance", 4: "cost and step tolerance"}.get(fit.status, str(fit.status))
     return v, rms, {"status": status, "evaluations": evaluations, "jacobians": jacobians, "restarts": restarted,
                     "seconds": time.perf_counter() - started}
+
+
+class _StackedJacobian(LinearOperator):
+    """A CSR Jacobian as SciPy's LSMR multiplies it in :func:`trust_region`, with its transpose stored.
+
+    Why: SciPy wraps a sparse Jacobian in a linear operator whose transposed product builds a conjugate copy
+    of the matrix at every call; LSMR takes one such product per iteration, 128 iterations per trust-region
+    step on the paper-2 benchmark's pre-fit (0.42 s of its 2.3 s fit).  The products are SciPy's own sparse
+    kernels adding each row's or column's terms in the same order, so the steps are the same to the last
+    bit."""
+
+    def __init__(self, matrix):
+        super().__init__(matrix.dtype, matrix.shape)
+        self.matrix = matrix
+        self.transposed = matrix.T.tocsr()
+
+    def _matvec(self, x):
+        return self.matrix @ x
+
+    def _matmat(self, X):
+        return self.matrix @ X
+
+    def _rmatvec(self, x):
+        return self.transposed @ x
+
+    def _rmatmat(self, X):
+        return self.transposed @ X
 
 
 def continuation(pb: ShootingProblem, v0, lower, upper, weights=PREFIT_DEFECT_WEIGHTS, **options):

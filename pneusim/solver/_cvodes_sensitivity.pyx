@@ -20,7 +20,7 @@ measured here and rejected: see the measurements below the declarations).
 """
 
 from libc.stdlib cimport malloc, free
-from libc.string cimport memcpy
+from libc.string cimport memcpy, memcmp
 cimport numpy as cnp
 import numpy as np
 
@@ -79,6 +79,7 @@ cdef extern from "small_dense.h":
 cdef extern from "small_vector.h":
     # SUNDIALS' serial vector with its per-step and fused operations in one call each (the same doubles)
     N_Vector SmallSerialVectorFused(sunindextype n, SUNContext context)
+    N_Vector SmallLeadingNormVector(sunindextype n_total, sunindextype n, SUNContext context)
 
 cdef extern from "cvodes/cvodes.h":
     enum: CV_BDF
@@ -135,6 +136,11 @@ cdef extern from "cvodes/cvodes_ls.h":
 # Since then the vector operations (fused ones included) are small_vector.h's and the dense factor,
 # solve, copy and I - gamma J small_dense.h's: the same doubles, the paper-2 benchmark fit 11.2 -> 9.3 s
 # with small_dense.h, -> 4.9 s with both (stop 32).
+# The augmented corrector (stop 39) at stop 40, perf on the benchmark's pre-fit window: the block solve's twelve
+# 4x4 back substitutions one after the other were a fifth of an evaluation (small_dense.h now solves them
+# together, 20 % -> 7 %), the model's three kernels another fifth (now one, "aug", with f_x kept for the
+# Newton matrix), CVODE's norms over 48 values 5 % (small_vector.h's leading-norm vector); one evaluation
+# 73 -> 46 ms on one thread, every result the same to the last bit.
 
 #: the augmented corrector's block solver handles models of up to this many states (small_dense.h's unrolled
 #: kernels); :class:`pneusim.solver.sensitivity.SensitivitySimulator` falls back to the staggered one above it
@@ -156,6 +162,7 @@ cdef struct Problem:
     Kernel rhs       # f(x, u, p) -> xdot
     Kernel jac       # f_x(x, u, p), dense column-major
     Kernel sens      # (x, u, p, S, weights) -> S', S column-major n x Ns
+    Kernel aug       # (x, u, p, S, weights) -> (f, S', f_x): the augmented corrector's right-hand side
     int n
     int ns
     double u
@@ -165,6 +172,9 @@ cdef struct Problem:
     double* s_out
     int n_total      # n + n * ns: the augmented state (corrector="augmented")
     double* jac_tmp  # n * n: the Jacobian kernel's output before it goes into the augmented matrix
+    double* fx_at    # n * n: f_x from the last augmented right-hand side, at the state x_at
+    double* x_at     # n
+    bint fx_valid    # fx_at holds f_x at x_at for the current input and parameters
     char message[512]
 
 
@@ -205,31 +215,37 @@ cdef int _aug_rhs(realtype t, N_Vector y, N_Vector ydot, void* data) noexcept no
     cdef double* yp = N_VGetArrayPointer(y)
     cdef double* dp = N_VGetArrayPointer(ydot)
     cdef int flag
-    pb.rhs.arg[0] = yp
-    pb.rhs.res[0] = dp
-    flag = pb.rhs.fn(pb.rhs.arg, pb.rhs.res, pb.rhs.iw, pb.rhs.w, 0)
-    if flag != 0:
-        return flag
-    pb.sens.arg[0] = yp
-    pb.sens.arg[3] = yp + pb.n      # S and S' in place: the augmented vectors hold them column-major
-    pb.sens.res[0] = dp + pb.n
-    return pb.sens.fn(pb.sens.arg, pb.sens.res, pb.sens.iw, pb.sens.w, 0)
+    pb.aug.arg[0] = yp
+    pb.aug.arg[3] = yp + pb.n       # S and S' in place: the augmented vectors hold them column-major
+    pb.aug.res[0] = dp
+    pb.aug.res[1] = dp + pb.n
+    pb.aug.res[2] = pb.fx_at
+    flag = pb.aug.fn(pb.aug.arg, pb.aug.res, pb.aug.iw, pb.aug.w, 0)
+    memcpy(pb.x_at, yp, pb.n * sizeof(double))
+    pb.fx_valid = flag == 0
+    return flag
 
 
 cdef int _aug_jac(realtype t, N_Vector y, N_Vector fy, SUNMatrix J, void* data,
                   N_Vector tmp1, N_Vector tmp2, N_Vector tmp3) noexcept nogil:
     # only the leading n x n block, f_x: CVODE zeroes the matrix before this call, and the block solver
-    # (small_dense.h) factors that block alone
+    # (small_dense.h) factors that block alone.  CVODE sets the Newton matrix up at the predicted state,
+    # right after the right-hand side there (SUNDIALS' Newton solver evaluates the residual first): f_x
+    # then comes from that call, else from the Jacobian kernel (the same expression, the same doubles)
     cdef Problem* pb = <Problem*> data
-    cdef int i, j, flag
+    cdef int i, j, flag = 0
     cdef int n = pb.n, ld = pb.n_total
     cdef double* out = SUNDenseMatrix_Data(J)
-    pb.jac.arg[0] = N_VGetArrayPointer(y)
-    pb.jac.res[0] = pb.jac_tmp
-    flag = pb.jac.fn(pb.jac.arg, pb.jac.res, pb.jac.iw, pb.jac.w, 0)
+    cdef double* yp = N_VGetArrayPointer(y)
+    cdef double* fx = pb.fx_at
+    if not (pb.fx_valid and memcmp(pb.x_at, yp, n * sizeof(double)) == 0):
+        pb.jac.arg[0] = yp
+        pb.jac.res[0] = pb.jac_tmp
+        flag = pb.jac.fn(pb.jac.arg, pb.jac.res, pb.jac.iw, pb.jac.w, 0)
+        fx = pb.jac_tmp
     for j in range(n):
         for i in range(n):
-            out[j * ld + i] = pb.jac_tmp[j * n + i]
+            out[j * ld + i] = fx[j * n + i]
     return flag
 
 
@@ -267,8 +283,9 @@ cdef class SensitivityIntegrator:
     Parameters
     ----------
     kernels : dict
-        ``{"rhs": f, "jac": f, "sens": f}`` of compiled CasADi functions, each
-        with ``address``, ``n_arg``, ``n_res``, ``n_iw``, ``n_w``.
+        ``{"rhs": f, "jac": f, "sens": f, "aug": f}`` of compiled CasADi functions, each
+        with ``address``, ``n_arg``, ``n_res``, ``n_iw``, ``n_w`` (``aug``: ``f``, ``S'`` and ``f_x`` in one
+        call, the augmented corrector's right-hand side).
     n, ns : int
         Number of states and of sensitivity directions.
     params : ndarray (n_params,)
@@ -318,17 +335,19 @@ cdef class SensitivityIntegrator:
         self.A_aug = NULL
         self.LS_aug = NULL
         self.pb.jac_tmp = NULL
+        self.pb.fx_at = NULL
+        self.pb.x_at = NULL
 
     def __init__(self, dict kernels, int n, int ns, double[::1] params, double[::1] weights,
                  double rtol, double[::1] atol, long max_steps=50000, bint sens_errcon=False,
                  str linear_algebra="small", str corrector="staggered"):
         cdef int i
-        cdef Kernel* fixed[3]
+        cdef Kernel* fixed[4]
         self.keep = (kernels, params, weights)   # the C side holds raw pointers into these
-        for name in ("rhs", "jac", "sens"):
+        fixed[0], fixed[1], fixed[2], fixed[3] = &self.pb.rhs, &self.pb.jac, &self.pb.sens, &self.pb.aug
+        for i, name in enumerate(("rhs", "jac", "sens", "aug")):
             k = kernels[name]
-            _kernel_init(&self.pb.rhs if name == "rhs" else (&self.pb.jac if name == "jac" else &self.pb.sens),
-                         k.address, k.n_arg, k.n_res, k.n_iw, k.n_w)
+            _kernel_init(fixed[i], k.address, k.n_arg, k.n_res, k.n_iw, k.n_w)
         self.pb.n, self.pb.ns = n, ns
         self.pb.p = &params[0]
         self.pb.weights = &weights[0]
@@ -337,12 +356,13 @@ cdef class SensitivityIntegrator:
         self.pb.s_in = <double*> malloc(max(n * ns, 1) * sizeof(double))
         self.pb.s_out = <double*> malloc(max(n * ns, 1) * sizeof(double))
         # the kernels' fixed arguments: the held input, the parameters (updated in place), and the
-        # sensitivity kernel's column weights; the callbacks set the state and the sensitivity buffers
-        fixed[0], fixed[1], fixed[2] = &self.pb.rhs, &self.pb.jac, &self.pb.sens
-        for i in range(3):
+        # sensitivity kernels' column weights; the callbacks set the state and the sensitivity buffers
+        for i in range(4):
             fixed[i].arg[1] = &self.pb.u
             fixed[i].arg[2] = self.pb.p
         self.pb.sens.arg[4] = self.pb.weights
+        self.pb.aug.arg[4] = self.pb.weights
+        self.pb.fx_valid = False
         if SUNContext_Create(NULL, &self.ctx) != 0:
             raise MemoryError("SUNContext_Create failed")
         if linear_algebra not in ("small", "sundials"):
@@ -383,7 +403,9 @@ cdef class SensitivityIntegrator:
                 raise ValueError("corrector='augmented' takes linear_algebra='small' and no sensitivity error control")
             self.pb.n_total = n + n * ns
             self.pb.jac_tmp = <double*> malloc(n * n * sizeof(double))
-            self.y_aug = SmallSerialVectorFused(self.pb.n_total, self.ctx)
+            self.pb.fx_at = <double*> malloc(n * n * sizeof(double))
+            self.pb.x_at = <double*> malloc(n * sizeof(double))
+            self.y_aug = SmallLeadingNormVector(self.pb.n_total, n, self.ctx)
             self.atol_aug = N_VNew_Serial(self.pb.n_total, self.ctx)
             # the sensitivities take no part in the error test or the Newton convergence test (as CVODES's
             # with its error control off): absolute tolerances of 1e100 give them weights of 1e-100 (not
@@ -398,7 +420,8 @@ cdef class SensitivityIntegrator:
                 N_VGetArrayPointer(self.atol_aug)[i] = atol[i] * dilution if i < n else 1e100
             self.A_aug = SmallBlockMatrix(self.pb.n_total, n, self.ctx)
             self.LS_aug = SmallBlockLinearSolver(self.pb.n_total, n, self.ctx)
-            if self.A_aug == NULL or self.LS_aug == NULL or self.pb.jac_tmp == NULL:
+            if (self.A_aug == NULL or self.LS_aug == NULL or self.pb.jac_tmp == NULL or self.pb.fx_at == NULL
+                    or self.pb.x_at == NULL):
                 raise MemoryError()
             self.mem_aug = self._memory(_aug_rhs, _aug_jac, self.y_aug, rtol * dilution, self.atol_aug, max_steps,
                                         self.A_aug, self.LS_aug)
@@ -443,7 +466,7 @@ cdef class SensitivityIntegrator:
             N_VDestroy(self.y_aug)
         if self.atol_aug != NULL:
             N_VDestroy(self.atol_aug)
-        free(self.pb.jac_tmp)
+        free(self.pb.jac_tmp); free(self.pb.fx_at); free(self.pb.x_at)
         if self.yS != NULL:
             N_VDestroyVectorArray(self.yS, self.pb.ns)
             N_VDestroyVectorArray(self.atolS, self.pb.ns)
@@ -454,6 +477,7 @@ cdef class SensitivityIntegrator:
             N_VDestroy(self.atol)
             free(self.pb.s_in); free(self.pb.s_out)
             _kernel_free(&self.pb.rhs); _kernel_free(&self.pb.jac); _kernel_free(&self.pb.sens)
+            _kernel_free(&self.pb.aug)
             SUNContext_Free(&self.ctx)
 
     def run(self, double t0, double[::1] x0, double[:, ::1] s0, double[::1] t_stop, double[::1] u,
@@ -490,8 +514,10 @@ cdef class SensitivityIntegrator:
         with nogil:
             for k in range(m):
                 if k == 0 or u[k] != self.pb.u:
-                    # a new start or a command jump: fresh BDF history from order 1
+                    # a new start or a command jump: fresh BDF history from order 1 (and the input, or the
+                    # parameters since the last run, changed the kept f_x)
                     self.pb.u = u[k]
+                    self.pb.fx_valid = False
                     flag = CVodeReInit(mem, t, y)
                     if flag < 0:
                         break

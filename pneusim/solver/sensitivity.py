@@ -109,7 +109,8 @@ class SensitivitySimulator:
         CVODES's staggered corrector.  The same states to the tolerance and sensitivities as accurate
         (position sensitivities on the paper-2 benchmark's pre-fit window against an rtol 1e-10 reference:
         median error 0.17 % of each column's range against 0.15 %, largest 3.3 % both); one evaluation of
-        that window takes 63 ms against 123 ms on one thread (``benchmarks/test_bench_fit.py``).  Models with
+        that window takes 45 ms against 138 ms on one thread (``benchmarks/test_bench_fit.py``, stop 40; 63 ms
+        against 123 ms before the block solve and the fused kernel).  Models with
         more than :data:`._cvodes_sensitivity.BLOCK_MAX_STATES` (8) states, and ``linear_algebra="sundials"``,
         use the staggered corrector.
     """
@@ -186,14 +187,19 @@ def _compiled_kernels(model: ActuatorModel, free: tuple[str, ...]) -> dict:
     w = ca.SX.sym("w", ns)
     f = model.xdot_sym
     forcing = ca.horzcat(ca.jacobian(f, p)[:, index], ca.SX.zeros(n, n)) if index else ca.SX.zeros(n, n)
-    s_dot = ca.mtimes(ca.jacobian(f, x), S) + ca.mtimes(forcing, ca.diag(w))
+    f_x = ca.jacobian(f, x)
+    s_dot = ca.mtimes(f_x, S) + ca.mtimes(forcing, ca.diag(w))
     tag = "_".join(e.name for e in model.effects) or "nominal"
     functions = [
         ca.Function(f"pneusim_sens_{tag}_rhs", [x, u, p], [f]),
-        ca.Function(f"pneusim_sens_{tag}_jac", [x, u, p], [ca.densify(ca.jacobian(f, x))]),
+        ca.Function(f"pneusim_sens_{tag}_jac", [x, u, p], [ca.densify(f_x)]),
         ca.Function(f"pneusim_sens_{tag}_srhs", [x, u, p, S, w], [ca.densify(s_dot)]),
+        # the augmented corrector's right-hand side in one call: f and S' share their subexpressions (1150
+        # instructions against 330 + 1142 at 4 states and 7 parameters), and f_x, which S' computes anyway,
+        # comes out for the Newton matrix at the same point (the same expression, so the same doubles)
+        ca.Function(f"pneusim_sens_{tag}_aug", [x, u, p, S, w], [f, ca.densify(s_dot), ca.densify(f_x)]),
     ]
     compiled = compile_functions(functions, prefix=f"pneusim_sens_{tag}", max_args=None)
-    kernels = {key_: compiled[fn.name()] for key_, fn in zip(("rhs", "jac", "sens"), functions)}
+    kernels = {key_: compiled[fn.name()] for key_, fn in zip(("rhs", "jac", "sens", "aug"), functions)}
     _KERNELS[key] = kernels
     return kernels

@@ -1,0 +1,125 @@
+"""The multiple-shooting problem's residuals, continuity defects and their sparse Jacobians.
+
+The Jacobians come from CVODES's forward sensitivities, gathered per output and segment into SciPy CSR
+matrices; here they are checked against central differences of the residuals themselves (integrated
+far more tightly), on a window with both pressures recorded and gaps in two signals.
+"""
+
+import numpy as np
+import pytest
+from scipy import sparse
+
+from pneusim.experiment import standard_experiment
+from pneusim.fit import DEFAULT_FREE
+from pneusim.fit.shooting import FitData, ShootingProblem, _csr_pattern, expected_position_reading
+from pneusim.fit.stages import _StackedJacobian
+from pneusim.model import ActuatorModel
+from pneusim.simulate import simulate
+
+
+@pytest.fixture(scope="module")
+def window(rig2):
+    """240 samples of a closed-loop multisine (noise on, both pressures), with a gap of 3 position samples
+    and one of 5 cap-end pressure samples, the true segment start states slightly perturbed."""
+    exp = standard_experiment(rig2, "multisine", 4.0, "closed", seed=11)
+    sim = simulate(rig2, exp, seed=3, record_pressures=True)
+    rec = sim.recording
+    first, n = 100, 240
+    position = rec.position_m[first:first + n].copy()
+    pressure_a = rec.pressure_a_Pa[first:first + n].copy()
+    position[57:60] = np.nan
+    pressure_a[130:135] = np.nan
+    signals = {"position_m": (position, rig2["position_noise_std_m"]),
+               "pressure_a_Pa": (pressure_a, rig2["pressure_noise_std_Pa"]),
+               "pressure_b_Pa": (rec.pressure_b_Pa[first:first + n].copy(), rig2["pressure_noise_std_Pa"])}
+    data = FitData(rec.time_s[first:first + n], rec.valve_cmd_V[first:first + n], float(rec.valve_cmd_V[first - 1]),
+                   signals)
+    model = ActuatorModel(())
+    params = model.param_vector(rig2)
+    scales = params[[model.param_names.index(k) for k in DEFAULT_FREE]].copy()
+
+    def problem(rtol):
+        return ShootingProblem(model, params, DEFAULT_FREE, scales, data, rig2.stroke_m, 40, rtol=rtol, threads=2)
+
+    pb = problem(1e-8)
+    starts = sim.states[first + pb.starts] * (1.0 + 0.01 * np.sin(np.arange(pb.n_segments * pb.n)).reshape(-1, pb.n))
+    theta = np.array([1.05, 0.97, 1.02, 0.95, 1.1, 0.9, 1.03])
+    v = pb.join(theta, starts)
+    yield pb, problem, v, data
+    pb.close()
+
+
+def test_residuals_are_each_sample_against_its_segment(window):
+    """Every residual is a recorded sample against the segment's own integration from its start state
+    (the position as the range-limited sensor reads it), divided by the noise; a gap gives no row; the
+    defects are each segment's end against the next one's start, in tolerance units."""
+    pb, _, v, data = window
+    e = pb.evaluate(v, derivatives=False)
+    assert e["ok"]
+    theta, starts = pb.split(v)
+    for sim in pb.sims:
+        sim.set_params(pb.params_of(theta))
+    expected, defects = [], []
+    for j in range(pb.n_segments):
+        n_out = pb.stops[j] - pb.starts[j] + 1
+        x, _ = pb.sims[0].run(data.time_s[pb.starts[j]], starts[j], pb.schedules[j], n_out, False)
+        samples = pb.samples_of(j)
+        for name, (values, sigma) in data.signals.items():
+            i = pb.model.state_names.index(name)
+            kept = samples[np.isfinite(values[samples])]
+            model_out = x[kept - pb.starts[j], i]
+            if name == "position_m":
+                model_out = expected_position_reading(model_out, pb.stroke_m, sigma)[0]
+            expected.append((model_out - values[kept]) / sigma)
+        if j < pb.n_segments - 1:
+            defects.append((x[-1] - starts[j + 1]) / pb.g_scale)
+    n_rows = sum(int(np.isfinite(values).sum()) for values, _ in data.signals.values())
+    assert pb.n_residuals == n_rows == e["r"].size
+    assert np.array_equal(e["r"], np.concatenate(expected))
+    assert np.array_equal(e["g"], np.concatenate(defects))
+
+
+def test_jacobians_match_central_differences(window):
+    pb, problem, v, _ = window
+    jr, jg = pb.jacobians(v)
+    assert sparse.isspmatrix_csr(jr) and jr.shape == (pb.n_residuals, pb.n_v)
+    assert jg.shape == (pb.n_constraints, pb.n_v)
+    tight = problem(1e-11)
+    try:
+        for c in range(pb.n_v):
+            h = 1e-5
+            plus, minus = v.copy(), v.copy()
+            plus[c] += h
+            minus[c] -= h
+            ep, em = tight.evaluate(plus, derivatives=False), tight.evaluate(minus, derivatives=False)
+            for exact, name in ((jr, "r"), (jg, "g")):
+                fd = (ep[name] - em[name]) / (2 * h)
+                column = exact[:, c].toarray().ravel()
+                scale = max(np.abs(fd).max(), 1e-9)
+                assert np.allclose(column, fd, rtol=2e-2, atol=2e-3 * scale), (name, c)
+    finally:
+        tight.close()
+
+
+def test_stacked_jacobian_multiplies_as_the_matrix_does():
+    """The trust region's operator gives SciPy's own products of the matrix and of its transpose, to the bit."""
+    rng = np.random.default_rng(0)
+    matrix = sparse.random(300, 40, density=0.1, random_state=rng, format="csr")
+    op = _StackedJacobian(matrix)
+    x, y, X = rng.normal(size=40), rng.normal(size=300), rng.normal(size=(40, 3))
+    assert np.array_equal(op.matvec(x), matrix @ x)
+    assert np.array_equal(op.rmatvec(y), matrix.T @ y)
+    assert np.array_equal(op.matmat(X), matrix @ X)
+    assert np.array_equal(op.rmatmat(y[:, None]), matrix.T @ y[:, None])
+
+
+def test_csr_pattern_is_scipy_conversion_and_refuses_a_repeated_entry():
+    rows, cols = np.array([2, 0, 1, 0, 2]), np.array([1, 3, 0, 0, 0])
+    data = np.array([1.5, -2.0, 3.0, 4.0, 5.0])
+    build = _csr_pattern(rows, cols, (3, 4))
+    reference = sparse.csr_matrix((data, (rows, cols)), shape=(3, 4))
+    built = build(data)
+    assert np.array_equal(built.indptr, reference.indptr) and np.array_equal(built.indices, reference.indices)
+    assert np.array_equal(built.data, reference.data)
+    with pytest.raises(ValueError, match="twice"):
+        _csr_pattern(np.array([0, 0]), np.array([1, 1]), (1, 2))
