@@ -217,9 +217,10 @@ def noise_levels(recording, rig) -> dict:
     return out
 
 
-def estimation_cost(fit, noise: dict) -> tuple[float, int]:
-    """``(C, N)``: residual sum of squares of a fit's estimation part in noise units, plus its continuity
-    defects weighted as in the fit's penalty form (:data:`DEFECT_WEIGHT`), and the number of residuals.
+def estimation_cost(fit, noise: dict, defects: bool = True) -> tuple[float, int]:
+    """``(C, N)``: residual sum of squares of a fit's estimation part in noise units, plus (with ``defects``)
+    its continuity defects weighted as in the fit's penalty form (:data:`DEFECT_WEIGHT`), and the number of
+    residuals.
 
     Why the defects: a fit that ends in the penalty form (IPOPT's constrained run rejected) may leave
     segments discontinuous, and its residual alone is then lower than any continuous model's.  On
@@ -234,7 +235,8 @@ def estimation_cost(fit, noise: dict) -> tuple[float, int]:
         n = int(np.sum(np.isfinite(values)))
         cost += n * (float(rms) / noise[name]) ** 2
         count += n
-    cost += DEFECT_WEIGHT ** 2 * float(fit.solver.get("defect_sum_squares", 0.0))
+    if defects:
+        cost += DEFECT_WEIGHT ** 2 * float(fit.solver.get("defect_sum_squares", 0.0))
     return cost, count
 
 

@@ -326,3 +326,37 @@ def test_second_effect_stands_where_the_first_had_not_stopped_short(monkeypatch)
     asymmetry, the load refitted alone at 98.91 % against 99.35 % with both, 0.06 points short of 0.50)."""
     needed, new_final, final, findings = _second_effect_with_stand_ins(monkeypatch, 3.2, 99.8)
     assert needed and new_final is final and findings[0].fit_percent == 94.5
+
+
+def test_other_is_said_on_the_residuals_alone_not_on_the_defects_a_penalty_fit_left_open():
+    """``other`` (nothing of the vocabulary kept) needs the nominal fit's residuals above 3 times the noise;
+    continuity defects left open by a fit that ended in the penalty form count in the keep test's costs but
+    not here.  The stand-in of ``practice2_08`` (a control): residuals at 1.13 times noise, defects whose
+    penalty put the weighted cost at 21 times noise."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from pneusim.diagnosis import candidates as cand
+    from pneusim.diagnosis.diagnose import other_finding
+    from pneusim.diagnosis.result import MismatchWindow
+
+    noise = {"position_m": 1e-4}
+    windows = [MismatchWindow(1.0, 1.5, "position_m", "velocity reversal"),
+               MismatchWindow(2.0, 2.2, "position_m", "holding still"),
+               MismatchWindow(3.0, 3.8, "position_m", "velocity reversal")]
+
+    def nominal(times_noise, defect_sum_squares):
+        recording = SimpleNamespace(position_m=np.zeros(1500))
+        return SimpleNamespace(recording=recording, n_estimation=1000, sigma={"position_m": times_noise * 1e-4},
+                               solver={"defect_sum_squares": defect_sum_squares}, fit_percent=98.7)
+
+    control = nominal(1.13, 0.00467)
+    weighted, n = cand.estimation_cost(control, noise)
+    assert math.sqrt(weighted / n) > 20.0
+    assert other_finding(control, noise, windows) is None
+    short = nominal(6.94, 0.0012)
+    finding = other_finding(short, noise, windows)
+    assert finding.effect == "other" and "6.9 times the sensor noise" in finding.evidence
+    assert "longest in 'velocity reversal'" in finding.evidence and finding.fit_percent == 98.7
+    assert other_finding(short, noise, []) is None
