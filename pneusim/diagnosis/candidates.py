@@ -332,7 +332,13 @@ def _problem(fit, recording, effects, free_extra, noise, samples, start_scale=No
 
 
 def _total_cost(pb, v) -> float:
-    e = pb.evaluate(v, derivatives=False)
+    """The trust region's objective at ``v``: residuals plus continuity defects weighted by DEFECT_WEIGHT.
+
+    Integrated with sensitivities, as :func:`~pneusim.fit.stages.trust_region` integrates every point: the
+    augmented corrector steps differently from the state's own memory, and on a chaotic stick-slip window
+    the two integrations of one point end apart (``practice2_21``'s leak fit: 277 607 without, 309 998 with;
+    every candidate screened on top of it was scored from the one against the other, -32 392 for all)."""
+    e = pb.evaluate(v, derivatives=True)
     if not e["ok"]:
         return float("inf")
     return float(np.dot(e["r"], e["r"]) + DEFECT_WEIGHT ** 2 * np.dot(e["g"], e["g"]))
