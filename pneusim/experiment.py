@@ -191,6 +191,11 @@ def default_controller(rig: Rig, kp_V_per_m: float | None = None) -> Proportiona
     return ProportionalController(kp, rig.params["valve_null_V"], rig.params["valve_min_V"], rig.params["valve_max_V"])
 
 
+#: the longest experiment :func:`standard_experiment` makes, in samples: its recording's dozen arrays of
+#: doubles then take about 1 GB (a duration of 1.2e7 s at 1 ms asked numpy for 92 GiB)
+MAX_SAMPLES = 10_000_000
+
+
 def standard_experiment(rig: Rig, kind: str, duration_s: float, loop: str = "closed", seed: int = 0,
                         kp_V_per_m: float | None = None) -> Experiment:
     """The experiments of ``pneusim simulate --input``: ``multisine``, ``steps`` or ``pulses``.
@@ -205,6 +210,9 @@ def standard_experiment(rig: Rig, kind: str, duration_s: float, loop: str = "clo
     ts = rig.sample_time_s
     if not (isinstance(duration_s, (int, float)) and 0 < duration_s < float("inf")):
         raise PneusimError(f"--duration must be a finite number of seconds > 0, got {duration_s!r}")
+    if duration_s / ts > MAX_SAMPLES + 0.5:
+        raise PneusimError(f"--duration {duration_s:g} s gives {duration_s / ts:.4g} samples at {ts} s; at most "
+                           f"{MAX_SAMPLES} ({MAX_SAMPLES * ts:g} s) fit in memory as a recording")
     n = int(round(duration_s / ts))
     if n < 50:
         raise PneusimError(f"--duration {duration_s} s gives {n} samples at {ts} s; at least 50 are needed")

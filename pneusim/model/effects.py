@@ -205,7 +205,9 @@ class TransportDelay(Effect):
     name = "transport_delay"
     description = "dead time between the command and the valve (tubing, DAQ latency)"
     parameters = {"delay_s": 0.01}
-    ranges = {"delay_s": NON_NEGATIVE}
+    #: at most 10 s: tubing and DAQ latency are milliseconds, and the sample loop holds the delayed commands
+    #: in a buffer of delay / sample time values (a delay of 1e9 s asked for 7 TiB)
+    ranges = {"delay_s": (0.0, 10.0, True, True)}
 
     def command_delay_s(self):
         return self.values["delay_s"]

@@ -38,7 +38,8 @@ def _one_line_error(argv, capsys, tmp_path, monkeypatch) -> str:
     (["--noise-scale", "-1"], "argument --noise-scale"),
     (["--param", "moving_mas_kg=1"], "did you mean 'moving_mass_kg'"),
     (["--effect", "valve_dynamics:damping=0"], "parameter damping must be > 0"),
-    (["--effect", "transport_delay:delay_s=-0.01"], "parameter delay_s must be >= 0"),
+    (["--effect", "transport_delay:delay_s=-0.01"], "parameter delay_s must be in [0, 10]"),
+    (["--duration", "1e9"], "fit in memory as a recording"),
 ])
 def test_simulate_option_mistakes_are_one_line(option, words, capsys, tmp_path, monkeypatch):
     last = _one_line_error(SIM + option + ["--out", "x.csv"], capsys, tmp_path, monkeypatch)

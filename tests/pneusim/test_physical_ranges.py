@@ -69,7 +69,8 @@ def test_param_on_the_command_line_blames_the_option_not_the_rig_file(tmp_path, 
 
 @pytest.mark.parametrize("effect, values, words", [
     ("valve_deadband", {"deadband_V": -0.1}, ">= 0"),
-    ("transport_delay", {"delay_s": -0.01}, ">= 0"),
+    ("transport_delay", {"delay_s": -0.01}, "in [0, 10]"),
+    ("transport_delay", {"delay_s": 1e9}, "in [0, 10]"),
     ("valve_dynamics", {"damping": 0.0}, "> 0"),
     ("valve_dynamics", {"damping": -0.7}, "> 0"),
     ("heat_transfer", {"time_constant_s": 0.0}, "> 0"),
