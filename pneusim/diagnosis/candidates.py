@@ -332,12 +332,9 @@ def _problem(fit, recording, effects, free_extra, noise, samples, start_scale=No
 
 
 def _total_cost(pb, v) -> float:
-    """The trust region's objective at ``v``: residuals plus continuity defects weighted by DEFECT_WEIGHT.
-
-    Integrated with sensitivities, as :func:`~pneusim.fit.stages.trust_region` integrates every point: the
-    augmented corrector steps differently from the state's own memory, and on a chaotic stick-slip window
-    the two integrations of one point end apart (``practice2_21``'s leak fit: 277 607 without, 309 998 with;
-    every candidate screened on top of it was scored from the one against the other, -32 392 for all)."""
+    """The trust region's objective at ``v`` (residuals, defects weighted by DEFECT_WEIGHT), integrated with
+    sensitivities as :func:`~pneusim.fit.stages.trust_region` integrates every point: the state's own memory
+    steps differently, and on ``practice2_21``'s leak fit the two gave 277 607 and 309 998 at one point."""
     e = pb.evaluate(v, derivatives=True)
     if not e["ok"]:
         return float("inf")

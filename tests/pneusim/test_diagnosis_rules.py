@@ -3,7 +3,7 @@
 Whole fits cost seconds to minutes each, so these tests replace them by stand-ins with set outcomes and
 check the decisions: which candidates far above noise are fitted whole and in which order
 (:func:`pneusim.diagnosis.cold.confirm_from_data_sheet`), where a whole fit starts, and how second
-effects are tried on top of the first finding (:func:`pneusim.diagnosis.diagnose._add_findings`).  The
+effects are tried on top of the first finding (:func:`pneusim.diagnosis.findings.add_findings`).  The
 end-to-end diagnosis of simulated recordings is in ``test_diagnosis.py``.
 """
 
@@ -165,7 +165,7 @@ def test_whole_fit_starts_from_the_data_sheet_where_the_pre_fit_explained_little
 
 def _findings_on_top_with_stand_ins(monkeypatch, explained: dict, second_only: tuple = (), first_rms: float = 3.0,
                                     warm_finds: bool = True):
-    """:func:`_add_findings` with stand-in screening and refits: the leak is the first finding (rms
+    """:func:`add_findings` with stand-in screening and refits: the leak is the first finding (rms
     ``first_rms`` in noise units), ``explained[effect]`` the share of its residual that effect's screening on
     top explains; a refit ends at rms 1 (and passes the test) only with the friction asymmetry in (and, warm
     from the leak's fit, only when ``warm_finds``), else at the leak's own rms.  Fits from the data sheet are
@@ -175,7 +175,7 @@ def _findings_on_top_with_stand_ins(monkeypatch, explained: dict, second_only: t
 
     from pneusim.diagnosis import candidates as cand
     from pneusim.diagnosis import cold
-    from pneusim.diagnosis.diagnose import _add_findings
+    from pneusim.diagnosis.findings import add_findings
     from pneusim.diagnosis.result import CandidateTrial
 
     n = 1000
@@ -196,7 +196,7 @@ def _findings_on_top_with_stand_ins(monkeypatch, explained: dict, second_only: t
 
     monkeypatch.setattr(cand, "screen", fake_screen)
     monkeypatch.setattr(cand, "refit", fake_refit)
-    monkeypatch.setattr(sys.modules["pneusim.diagnosis.diagnose"], "fit_recording", fake_fit)
+    monkeypatch.setattr(sys.modules["pneusim.diagnosis.findings"], "fit_recording", fake_fit)
     monkeypatch.setattr(cand, "estimation_cost", lambda fit, noise: (fit.rms ** 2 * n, n))
     monkeypatch.setattr(cand, "passes_test", lambda c0, c1, n_, k, f0, f1, floor: (c1 < 0.5 * c0, 0.5, "test"))
     monkeypatch.setattr(cand, "effect_parameters", lambda fit, name: ({}, {}))
@@ -210,7 +210,7 @@ def _findings_on_top_with_stand_ins(monkeypatch, explained: dict, second_only: t
                                             effects_=[c.effect], estimates={}), c)
     basis = cold.NominalBaseline({"position_m": 1.0}, 30.0 ** 2 * n, n, 0.0, 0.2, 0.3, None)
     findings = []
-    _add_findings(None, None, names, refits, trials, findings, basis, None, n, 2, lambda m: None,
+    add_findings(None, None, names, refits, trials, findings, basis, None, n, 2, lambda m: None,
                   {k: cand.Candidate(k, k, make_effect(k), []) for k in second_only})
     return refitted, [f.effect for f in findings], trials
 
@@ -282,7 +282,7 @@ def _second_effect_with_stand_ins(monkeypatch, alone_rms: float, alone_fit: floa
     from types import SimpleNamespace
 
     from pneusim.diagnosis import candidates as cand
-    from pneusim.diagnosis.diagnose import _second_effect_needed
+    from pneusim.diagnosis.findings import _second_effect_needed
     from pneusim.diagnosis.result import CandidateTrial, Finding
 
     n = 5600
