@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputFileError, PneusimError
+from ..experiment import MAX_SAMPLES
 from ..tomlfile import read_toml
 
 __all__ = ["load_scenario", "validate_scenario", "set_dotted", "get_dotted", "SIGNAL_KINDS",
@@ -406,6 +407,10 @@ def _validate_with_rig(where, data, variant_exps):
             _fail(where, f"rig.effects[{i}]", f"{exc} (form: 'NAME:PARAM=VALUE,...')")
     for prefix, exp in [("experiment", data["experiment"])] + list(variant_exps):
         ts = float(exp.get("sample_time_s") or rig.sample_time_s)
+        if not exp["duration_s"] / ts <= MAX_SAMPLES + 0.5:
+            _fail(where, f"{prefix}.duration_s", f"expected at most {MAX_SAMPLES} samples ({MAX_SAMPLES * ts:g} s at "
+                                                 f"{ts:g} s, what a recording holds in memory), got "
+                                                 f"{exp['duration_s']!r} s")
         n = int(round(exp["duration_s"] / ts))
         if n < MIN_SAMPLES:
             _fail(where, f"{prefix}.duration_s", f"expected at least {MIN_SAMPLES} samples: {exp['duration_s']!r} s "

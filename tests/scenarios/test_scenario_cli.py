@@ -37,6 +37,7 @@ def _file(tmp_path, rig="", loop="open", duration=2.0, experiment=SIGNAL, ident=
     ({"rig": 'effects = ["nosuch:x=1"]'}, "rig.effects[0]", "expected one of"),
     ({"rig": 'effects = ["valve_deadband:deadband_V=abc"]'}, "rig.effects[0]", "must be a number"),
     ({"duration": 0.1}, "experiment.duration_s", "at least 50 samples"),
+    ({"duration": 1e12}, "experiment.duration_s", "at most 10000000 samples"),
     ({"experiment": 'signal = { kind = "multisine", unit = "m", components = [[0.01, 0.5]] }'},
      "experiment.signal.unit", "expected 'native'"),
     ({"experiment": 'signal = { kind = "multisine", width_s = [0.1, 0.2], components = [[0.5, 0.5]] }'},
