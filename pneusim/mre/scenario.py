@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputFileError, PneusimError
+from ..experiment import MAX_SAMPLES
 from ..tomlfile import read_toml
 
 __all__ = ["load_mre", "validate_mre", "MRE_MODES", "Components", "build_components", "build_controller",
@@ -250,6 +251,9 @@ def build_components(spec: dict, duration_s: float | None = None) -> Components:
     effects = merged_effects(rig, spec["rig"]["effects"])
     ts = rig.sample_time_s
     duration = float(duration_s if duration_s is not None else m["duration_s"])
+    if not duration / ts <= MAX_SAMPLES + 0.5:
+        raise PneusimError(f"duration {duration:g} s gives {duration / ts:.4g} samples at {ts:g} s; at most "
+                           f"{MAX_SAMPLES} ({MAX_SAMPLES * ts:g} s) fit in memory as a recording")
     n = int(round(duration / ts))
     if n < 50:
         raise PneusimError(f"duration {duration:g} s gives {n} samples at {ts:g} s; at least 50 are needed")
@@ -263,6 +267,9 @@ def build_components(spec: dict, duration_s: float | None = None) -> Components:
     x0 = m["initial_position_m"]
     if x0 is None:
         x0 = float(np.clip(ref[0], 0.0, rig.stroke_m)) if closed else 0.5 * rig.stroke_m
+    if not float(m["warmup_s"]) / ts <= MAX_SAMPLES + 0.5:
+        raise PneusimError(f"mre.warmup_s = {m['warmup_s']:g} s gives {m['warmup_s'] / ts:.4g} samples at {ts:g} s; "
+                           f"at most {MAX_SAMPLES} ({MAX_SAMPLES * ts:g} s)")
     n_warm = int(round(float(m["warmup_s"]) / ts))
     u_init = ctrl.command(-n_warm * ts, ref[0], x0) if closed else float(ref[0])
     if closed:

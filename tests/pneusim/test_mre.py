@@ -265,3 +265,15 @@ def test_status_line_shows_samples_overruns_lateness_and_one_step_error():
     text = stream.getvalue()
     assert "mre: 100/100 samples (100 %), overruns" in text and "lateness p50" in text
     assert "1-step error (RLS ARMA order 4)" in text
+
+
+@pytest.mark.parametrize("edit, option, words", [
+    (None, ["--duration", "1e12"], "at most 10000000"),
+    (("warmup_s = 0.0", "warmup_s = 1e12"), [], "mre.warmup_s = 1e+12 s"),
+])
+def test_runs_longer_than_a_recording_holds_give_one_clear_line(tmp_path, capsys, edit, option, words):
+    path = tmp_path / "m.toml"
+    path.write_text(MRE_TEXT.replace(*edit) if edit else MRE_TEXT, encoding="utf-8")
+    assert main(["mre", str(path), *option, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and words in err
