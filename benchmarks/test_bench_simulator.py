@@ -21,7 +21,7 @@ Cases: an 80 s closed-loop paper-2 run (multisine) and a 20 s closed-loop paper-
   loop goes its own way, see ``test_cvode_real_time``'s printout).  CVODE, SciPy BDF
   and SciPy LSODA, all on the same CasADi model at rtol 1e-6 with the same absolute
   tolerances.  The reference is CVODE at rtol 1e-10 (its own error is estimated
-  against rtol 1e-11 and printed; ``tests/pneusim/test_solver.py`` checks CVODE against
+  against rtol 1e-11 and printed; ``tests/pneusim/solver/test_solver.py`` checks CVODE against
   SciPy Radau at tight tolerance).
 * ``test_equal_accuracy``: CVODE at rtol 1e-7 and 1e-8 too; each SciPy peer's time is
   divided by the time of the fastest CVODE run whose error is no larger than the
@@ -114,7 +114,7 @@ def test_cvode_real_time(benchmark, case):
     best = min(t for t, _ in runs)
     sim = runs[-1][1]
     # the peer in the same run: CVODE with SUNDIALS' own vector, matrix and linear solver instead of
-    # small_vector.h's and small_dense.h's (the same doubles: checked here and in tests/pneusim/test_solver.py)
+    # small_vector.h's and small_dense.h's (the same doubles: checked here and in tests/pneusim/solver/test_solver.py)
     peer_best, peer = _timed(lambda: simulate(rig, exp, noise_scale=0, backend="cvode-sundials"), 7)
     assert np.array_equal(peer.states, sim.states)
     ref, _ = _reference(case, converter=True)

@@ -1,6 +1,6 @@
 """Sweep throughput (runs per second): in this process, 1 and 2 local worker processes, and Dask.
 
-Every benchmark runs the 50-run sweep of ``tests/scenarios/data/tiny-sweep.toml`` (open-loop doublets on
+Every benchmark runs the 50-run sweep of ``tests/pneusim/scenario/data/tiny-sweep.toml`` (open-loop doublets on
 the paper 2 rig, ARX + in-loop RLS, one run that raises) with each run lengthened to 8 s (800 samples),
 into a fresh directory, so nothing is skipped.  Modes:
 
@@ -31,7 +31,7 @@ import pytest
 
 from pneusim.scenario.sweep import load_sweep, run_sweep
 
-SWEEP = Path(__file__).resolve().parents[1] / "tests" / "scenarios" / "data" / "tiny-sweep.toml"
+SWEEP = Path(__file__).resolve().parents[1] / "tests" / "pneusim" / "scenario" / "data" / "tiny-sweep.toml"
 MODES = ["inprocess", "local-1", "local-2", "dask-local-2", "dask-running-2"]
 RESULTS: dict[str, float] = {}
 PARTS: dict[str, str] = {}

@@ -48,7 +48,7 @@ def test_simulate_option_mistakes_are_one_line(option, words, capsys, tmp_path, 
 
 
 def test_noise_scale_nan_in_a_scenario_is_refused_before_running(tmp_path):
-    scenario = Path(__file__).resolve().parents[1] / "scenarios" / "data" / "tiny-open-loop.toml"
+    scenario = Path(__file__).resolve().parents[1] / "scenario" / "data" / "tiny-open-loop.toml"
     spec = load_scenario(scenario)
     for value in (float("nan"), float("inf"), -1.0):
         spec["experiment"]["noise_scale"] = value

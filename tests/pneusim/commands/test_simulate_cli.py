@@ -63,7 +63,7 @@ def test_user_mistakes_are_one_clear_line(argv, message, capsys, tmp_path, monke
 def test_an_output_folder_that_cannot_be_created_is_refused_before_any_work(tmp_path, capsys):
     blocker = tmp_path / "a-file"
     blocker.write_text("")
-    scenario = Path(__file__).resolve().parents[2] / "scenarios" / "paper2-multisine.toml"
+    scenario = Path(__file__).resolve().parents[3] / "scenarios" / "paper2-multisine.toml"
     assert main(["run", str(scenario), "--out", str(blocker / "report"), "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "the folder cannot be created" in err and "Traceback" not in err and "simulate" not in err

@@ -12,7 +12,7 @@ from pneusim.scenario.schema import load_scenario
 from physical_checks import check_physical_fit_recovers_the_rig
 from independent import h_step, read_predictions, rows_of, rls_history, stats
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
+SCENARIOS = Path(__file__).resolve().parents[3] / "scenarios"
 
 
 @pytest.fixture(scope="module")
