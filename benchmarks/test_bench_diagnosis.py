@@ -15,7 +15,8 @@ Every recording of the set (default ``../shared/practice2``) is diagnosed on the
   (the peer: what any fit-based diagnosis has to pay at least).
 
 The table is written to ``results/diagnosis-<set>/score.md`` beside the per-recording results and
-``summary.csv``.  ``PNEUSIM_DIAGNOSIS_LIMIT=N`` diagnoses the first N files only (a quick look);
+``summary.csv``, and to ``docs/results/diagnosis-<set>.md`` with the commit, machine, date and command
+(:mod:`results_file`).  ``PNEUSIM_DIAGNOSIS_LIMIT=N`` diagnoses the first N files only (a quick look);
 ``PNEUSIM_DIAGNOSIS_RIG=paper2-enfield`` only the recordings whose ``rig`` metadata names that rig
 (the table then goes to ``results/diagnosis-<set>-<rig>/``).
 """
@@ -28,9 +29,12 @@ from pathlib import Path
 
 import pytest
 
+from results_file import write_results
+
 HERE = Path(__file__).resolve().parent.parent
 SET = Path(os.environ.get("PNEUSIM_DIAGNOSIS_SET", HERE.parent / "shared" / "practice2"))
 RIG = os.environ.get("PNEUSIM_DIAGNOSIS_RIG")
+LIMIT = int(os.environ.get("PNEUSIM_DIAGNOSIS_LIMIT", "0") or 0)
 
 
 def _load():
@@ -46,8 +50,7 @@ def _load():
             pytest.fail(f"PNEUSIM_DIAGNOSIS_RIG={RIG!r} is not a known rig; expected one of "
                         f"{', '.join(known_rig_names())}", pytrace=False)
         files = [f for f in files if read_recording(f).rig == RIG]
-    limit = int(os.environ.get("PNEUSIM_DIAGNOSIS_LIMIT", "0") or 0)
-    return files[:limit] if limit else files, json.loads(answers.read_text())["cases"]
+    return files[:LIMIT] if LIMIT else files, json.loads(answers.read_text())["cases"]
 
 
 def score(rows, cases) -> dict:
@@ -131,4 +134,7 @@ def test_diagnose_practice_set(benchmark):
     table = _table(s, load, ratio)
     (out / "score.md").write_text(table)
     print("\n" + table)
+    name = f"diagnosis-{SET.name}" + (f"-{RIG}" if RIG else "") + (f"-first-{LIMIT}" if LIMIT else "")
+    title, _, body = table.partition("\n")
+    write_results(name, title.lstrip("# "), f"{len(rows)} recordings, {workers} at a time.\n{body}")
     assert s["failed"] < len(rows)

@@ -12,7 +12,8 @@ manifest gives per rig (effects that change the recorded position clearly), each
 of it.  The experiments: closed-loop random steps, closed-loop multisine (paper 2) or pulses (paper 1),
 and open-loop command doublets kept off the end stops by a pulse towards the middle
 (:func:`pneusim.experiment.recentering_doublets`, as practice2's), in turn; heat transfer open loop only (closed loop hides it), pressures
-recorded for every other case.  Prints and writes (``results/diagnosis-simulated-<rig>/score.md``) the
+recorded for every other case.  Prints and writes (``results/diagnosis-simulated-<rig>/score.md``, and
+``docs/results/diagnosis-simulated-<rig>.md`` headed by the commit, machine, date and command) the
 truth, the findings, the fitted effect parameters, the validation fit before and after, and the time.
 """
 
@@ -32,6 +33,7 @@ from pneusim.model.chamber import areas_m2
 from pneusim.recording import write_recording
 from pneusim.rig import load_rig
 from pneusim.simulate import simulate
+from results_file import write_results
 
 HERE = Path(__file__).resolve().parent.parent
 RIG = os.environ.get("PNEUSIM_SIMDIAG_RIG", "paper2-enfield")
@@ -158,5 +160,6 @@ def test_diagnose_simulated_set(benchmark, tmp_path):
         lines.append(f"| {r[0]} | `{r[1]}` | {r[2]} | {params} | {r[4]:.2f} | {r[5]:.2f} | {r[6]:.0f} | "
                      f"{'yes' if r[7] else 'NO'} {r[8]} |")
     (out / "score.md").write_text("\n".join(lines) + "\n")
+    write_results(f"diagnosis-simulated-{RIG}", lines[0].lstrip("# "), "\n".join(lines[2:]))
     print("\n" + "\n".join(lines))
     assert rows

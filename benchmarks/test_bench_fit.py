@@ -10,8 +10,11 @@ error and the validation fit; the second prints the speed ratio measured in the 
 
     pytest benchmarks/test_bench_fit.py --benchmark-only -s
 
+The rows measured are written to ``docs/results/fit-speed.md`` with the commit, machine, date and
+command (:mod:`results_file`).
+
 A third benchmark fits paper 1's rig (1 ms sampling, 20000 samples, closed loop, both pressures
-recorded) with the same factors off its data sheet and prints its time against the issue's 30 s.
+recorded) with the same factors off its data sheet and prints its time against the 30 s target.
 """
 
 import time
@@ -25,8 +28,11 @@ from pneusim.fit import DEFAULT_FREE, fit_recording
 from pneusim.metrics import fit_percent
 from pneusim.rig import load_rig
 from pneusim.simulate import rerun_recording, simulate
+from results_file import write_results
 
 RESULTS = {}
+#: ``[(fit, seconds, largest parameter error, validation fit %, note)]`` for the results file
+ROWS = []
 FACTORS = {"valve_sonic_conductance_m3_per_s_Pa": 0.8, "valve_critical_pressure_ratio": 0.26 / 0.3,
            "friction_static_N": 1.2, "friction_coulomb_N": 0.9, "friction_stribeck_velocity_m_per_s": 1.3,
            "friction_viscous_N_s_per_m": 1.2, "moving_mass_kg": 1.25}
@@ -42,6 +48,22 @@ def _closed_loop_case(rig_name, kind, duration_s, pressures):
     return rig, truth, recording
 
 
+@pytest.fixture(scope="module", autouse=True)
+def results_table():
+    """After the module: every fit measured, in one table (``docs/results/fit-speed.md``)."""
+    yield
+    if not ROWS:
+        return
+    lines = ["| fit | time | largest parameter error | validation fit | |", "|---|---|---|---|---|"]
+    lines += [f"| {name} | {seconds:.2f} s | {100 * error:.2f} % | {validation:.2f} % | {note} |"
+              for name, seconds, error, validation, note in ROWS]
+    if SENSITIVITY_RUNS:
+        lines += ["", "| one evaluation of the pre-fit window with sensitivities (one thread) | median |", "|---|---|"]
+        lines += [f"| corrector `{c}` | {1e3 * t:.0f} ms |" for c, (t, _) in SENSITIVITY_RUNS.items()]
+    write_results("fit-speed", "Physical fit speed against SciPy's least_squares on the same simulator",
+                  "\n".join(lines))
+
+
 @pytest.fixture(scope="module")
 def case():
     return _closed_loop_case("paper2-enfield", "multisine", 80.0, pressures=False)
@@ -51,15 +73,18 @@ def _report(name, seconds, estimates, truth, validation):
     error = max(abs(estimates[k] / truth[k] - 1.0) for k in truth)
     RESULTS[name] = (seconds, error)
     line = f"{name}: {seconds:.1f} s, largest parameter error {100 * error:.2f} %, validation fit {validation:.2f} %"
+    note = "paper 2, 80 s closed-loop multisine, seven free parameters"
     if name != "pneusim" and "pneusim" in RESULTS:
         ours, our_error = RESULTS["pneusim"]
         line += f" -> pneusim is {seconds / ours:.1f}x faster"
+        note = f"pneusim is {seconds / ours:.1f}x faster"
         if error > 2.0 * max(our_error, 0.01):
             # a peer that stops in a local minimum never reaches equal accuracy: the wall-time ratio is
             # then a lower bound of the speed-up at equal accuracy, and saying so is the honest report
             line += (f" in wall time, and the peer stopped at {100 * error:.1f} % error against pneusim's "
                      f"{100 * our_error:.2f} %: at equal accuracy the ratio is unbounded")
     print("\n" + line)
+    ROWS.append((name, seconds, error, validation, note))
     return error
 
 
@@ -121,7 +146,7 @@ def test_fit_scipy_least_squares_finite_differences(benchmark, case):
                                  "function_evaluations": int(out["fit"].nfev)})
 
 
-#: the issue's target for the paper-1 closed-loop fit with pressures, s (printed, not asserted)
+#: the target for the paper-1 closed-loop fit with pressures, s (printed, not asserted)
 PAPER1_TARGET_S = 30.0
 
 
@@ -144,6 +169,9 @@ def test_fit_pneusim_paper1_closed_loop_with_pressures(benchmark, paper1_case):
     if "pneusim" in RESULTS:
         line += f"; {seconds / RESULTS['pneusim'][0]:.1f}x the paper-2 fit's time in this run"
     print("\n" + line)
+    ROWS.append(("pneusim, paper 1", seconds, error, result.fit_percent,
+                 f"20 s closed-loop pulses with pressures ({recording.n_samples} samples), target "
+                 f"{PAPER1_TARGET_S:.0f} s; normalised residual {result.normalised_residual:.3f}"))
     benchmark.extra_info.update({"seconds": seconds, "largest_error": error,
                                  "normalised_residual": result.normalised_residual})
     assert result.converged_to_noise and error < 0.05

@@ -5,7 +5,9 @@
   experiment kind, open and closed loop, with and without pressures) is fitted from the data sheet;
   prints the share that reaches the noise level (normalised residual <= 1.1; target >= 95 %), the
   share of parameters whose truth lies within 3 sigma (target >= 90 %) and the time per fit, and
-  writes one JSON line per case to ``PNEUSIM_ROBUST_OUT`` when set.  The free set is the seven defaults
+  writes one JSON line per case to ``PNEUSIM_ROBUST_OUT`` when set, and the table to
+  ``docs/results/fit-robustness.md`` (``fit-robustness-N.md`` for another ``PNEUSIM_ROBUST_N``,
+  ``-defaults-free`` appended when the smoothing velocity is not freed).  The free set is the seven defaults
   plus the friction smoothing velocity (:func:`pneusim.fit.robustness.fit_free`, see that module for
   why); ``PNEUSIM_ROBUST_FREE_SMOOTHING=0`` fits the seven defaults only.
 * ``test_refit_warm_against_cold``: diagnosis refits a recording once per candidate effect.  The
@@ -28,6 +30,7 @@ from pneusim.fit.robustness import fit_free, make_case, robustness_cases, score
 from pneusim.model import ActuatorModel, make_effect
 from pneusim.rig import load_rig
 from pneusim.simulate import simulate
+from results_file import write_results
 
 
 @pytest.mark.benchmark(group="fit-robustness")
@@ -65,6 +68,22 @@ def test_robustness_set(benchmark):
           f"load {os.getloadavg()[0]:.1f}")
     benchmark.extra_info.update({"converged_share": float(converged), "coverage": float(coverage),
                                  "seconds_per_fit": float(seconds.mean())})
+    inside = sum(r["inside_3_sigma"] for r in rows)
+    lines = [f"{len(rows)} recordings, {len(free)} free parameters, each fitted from the data sheet.", "",
+             "| measure | value | target |", "|---|---|---|",
+             f"| reach the noise level (normalised residual <= 1.1) | {sum(r['converged_to_noise'] for r in rows)} / "
+             f"{len(rows)} ({100 * converged:.0f} %) | 95 % |",
+             f"| true values within 3 standard errors | {inside} / {sum(r['parameters'] for r in rows)} "
+             f"({100 * coverage:.1f} %) | 90 % |",
+             f"| time per fit, mean / median / longest | {seconds.mean():.1f} s / {np.median(seconds):.1f} s / "
+             f"{seconds.max():.1f} s | |", "",
+             "| recording | normalised residual | within 3 sigma | s |", "|---|---|---|---|"]
+    for r in rows:
+        residual = f"{r['normalised_residual']:.3f}" if "normalised_residual" in r else f"failed: {r['error']}"
+        lines.append(f"| {r['name']} | {residual} | {r['inside_3_sigma']}/{r['parameters']} | {r['wall_s']:.1f} |")
+    name = "fit-robustness" + ("" if len(specs) == 48 else f"-{len(specs)}") + ("" if len(free) > len(DEFAULT_FREE)
+                                                                             else "-defaults-free")
+    write_results(name, "How often the physical fit converges: the robustness set", "\n".join(lines))
 
 
 @pytest.mark.benchmark(group="fit-refit")

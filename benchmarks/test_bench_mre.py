@@ -16,7 +16,8 @@ samples late by more than half a sample (target <= 0.1 %), the loop's computatio
 CPU time the hypervisor stole from the VM meanwhile (``/proc/stat``), and for UDP the lost and late
 datagrams and the time from a command to reading its measurement.  Nothing is asserted about time:
 the numbers depend on the machine and its load (the 1-minute load average is printed before and
-after each case).  ``PNEUSIM_MRE_BENCH_CASES`` picks cases, e.g. ``sim-realtime-fifo,udp-realtime-fifo``.  Run::
+after each case).  ``PNEUSIM_MRE_BENCH_CASES`` picks cases, e.g. ``sim-realtime-fifo,udp-realtime-fifo``.
+The table is written to ``docs/results/mre.md`` with the commit, machine, date and command.  Run::
 
     nice -n -5 .venv/bin/python -m pytest benchmarks/test_bench_mre.py --benchmark-only -s
 """
@@ -33,6 +34,7 @@ from pneusim.mre.clock import SleepPacing
 from pneusim.mre.rt import DEFAULT_PRIORITY, RealtimeSettings
 from pneusim.mre.run import run_mre
 from pneusim.mre.scenario import load_mre
+from results_file import write_results
 
 MRE = Path(__file__).resolve().parents[1] / "scenarios" / "mre-paper1.toml"
 DURATION_S = float(os.environ.get("PNEUSIM_MRE_BENCH_S", "60"))
@@ -101,6 +103,15 @@ def table():
                   f"{r.get('udp', '')}")
         print("  steal: CPU time the hypervisor took from the VM during the case (both CPUs); under SCHED_FIFO the "
               "loop's remaining stalls follow it")
+        lines = [f"Paper 1's loop (RLS orders 3, 4, 5), {DURATION_S:g} s at 1 ms each.", "",
+                 "| plant | pacing | scheduling | lateness p50 / p99 / max | late > half a sample | overruns | "
+                 "computation p50 / p99 | load before / after | steal | UDP |", "|---|---|---|---|---|---|---|---|---|---|"]
+        lines += [f"| {plant} | {pacing} | {sched} | {r['late_p50_ms']:.3f} / {r['late_p99_ms']:.3f} / "
+                  f"{r['late_max_ms']:.2f} ms | {r['late_half_percent']:.3f} % | {r['overruns']} | "
+                  f"{r['compute_p50_ms']:.3f} / {r['compute_p99_ms']:.3f} ms | {r['load_before']:.2f} / "
+                  f"{r['load_after']:.2f} | {r['steal_ms']:.0f} ms | {r.get('udp', '')} |"
+                  for (plant, pacing, sched), r in RESULTS.items()]
+        write_results("mre", "Mixed-reality loop timing", "\n".join(lines))
         sim = RESULTS.get(("sim", "realtime", "fifo"), {})
         if "order4_live_equals_fast" in sim:
             print(f"  order-4 model of the live sim run equals the fast run's: {sim['order4_live_equals_fast']}")

@@ -34,10 +34,11 @@ Cases: an 80 s closed-loop paper-2 run (multisine) and a 20 s closed-loop paper-
   ``mapaccum`` over the samples) on the 80 s paper-2 closed loop and an 80 s open loop,
   same tolerances (states scaled so that CasADi's scalar abstol is ours).
 
-Speed is only reported (``extra_info`` and the printout), never asserted; the asserts
-check that every backend is in the same accuracy class.  The printout sets the numbers
-beside the issue's targets: at least 500x real time for the 80 s closed-loop paper-2
-run, at least 20x faster than SciPy BDF at equal accuracy.
+Speed is only reported (``extra_info``, the printout and ``docs/results/simulator.md`` with the
+commit, machine, date and command), never asserted; the asserts check that every backend is
+in the same accuracy class.  The printout sets the numbers beside the targets: at least 500x
+real time for the 80 s closed-loop paper-2 run, at least 20x faster than SciPy BDF at equal
+accuracy.
 """
 
 import time
@@ -49,6 +50,7 @@ from pneusim.experiment import standard_experiment
 from pneusim.rig import load_rig
 from pneusim.simulate import simulate
 from pneusim.solver.backends import state_scales
+from results_file import write_results
 
 CASES = {
     "paper2-closed-80s": ("paper2-enfield", "multisine", 80.0),
@@ -57,9 +59,34 @@ CASES = {
 PEERS = ("scipy-bdf", "scipy-lsoda")
 RTOL = 1e-6
 LADDER = (1e-7, 1e-8)
-TARGET_REAL_TIME = {"paper2-closed-80s": 500.0, "paper1-closed-20s": 200.0}  # the issue's targets, printed, not asserted
+TARGET_REAL_TIME = {"paper2-closed-80s": 500.0, "paper1-closed-20s": 200.0}  # targets, printed, not asserted
 TARGET_VS_BDF = 20.0
 RESULTS = {}  # (case, backend, rtol) -> (best wall time s, max position error m)
+AS_SHIPPED = {}  # case -> (best s, real-time factor, steps a sample, cvode-sundials real-time factor)
+EQUAL_ACCURACY = {}  # (case, peer) -> CVODE's speed-up at equal or better accuracy
+
+
+@pytest.fixture(scope="module", autouse=True)
+def results_table():
+    """After the module: the measured speeds in one file, ``docs/results/simulator.md``."""
+    yield
+    lines = []
+    if AS_SHIPPED:
+        lines += ["The rigs as shipped (position converter in the loop), sensor noise off, CVODE rtol 1e-6.", "",
+                  "| run | time | real time | steps a sample | backend `cvode-sundials` (same doubles) |",
+                  "|---|---|---|---|---|"]
+        lines += [f"| {case} | {best:.3f} s | **{rt:.0f}x** | {steps:.1f} | {peer:.0f}x real time |"
+                  for case, (best, rt, steps, peer) in AS_SHIPPED.items()]
+    if RESULTS:
+        lines += ["", "Position converter off, against a CVODE reference at rtol 1e-10.", "",
+                  "| run | backend | rtol | time | largest position error |", "|---|---|---|---|---|"]
+        lines += [f"| {case} | {backend} | {rtol:g} | {best:.3f} s | {error:.1e} m |"
+                  for (case, backend, rtol), (best, error) in sorted(RESULTS.items())]
+    if EQUAL_ACCURACY:
+        lines += ["", "| run | CVODE faster than, at equal or better accuracy |", "|---|---|"]
+        lines += [f"| {case} | {peer}: {ratio:.0f}x |" for (case, peer), ratio in EQUAL_ACCURACY.items()]
+    if lines:
+        write_results("simulator", "Simulator speed", "\n".join(lines))
 
 
 def _case(name, converter=True, loop="closed", kind=None):
@@ -121,6 +148,7 @@ def test_cvode_real_time(benchmark, case):
     error = float(np.max(np.abs(sim.state("position_m") - ref.state("position_m"))))
     stats = sim.solver_stats
     n = exp.n_samples + int(round(exp.warmup_s / exp.sample_time_s))
+    AS_SHIPPED[case] = (best, duration / best, stats["steps"] / n, duration / peer_best)
     benchmark.extra_info.update({"real_time_factor": duration / best, "max_position_error_m": error,
                                  "steps_per_sample": stats["steps"] / n,
                                  "real_time_factor_sundials_algebra": duration / peer_best,
@@ -195,6 +223,7 @@ def test_equal_accuracy(benchmark, case):
         t_cv, e_cv = RESULTS[(case, "cvode", rtol)]
         ratio = t_peer / t_cv
         benchmark.extra_info[f"cvode_speedup_equal_accuracy_vs_{peer}"] = ratio
+        EQUAL_ACCURACY[(case, peer)] = ratio
         lines.append(f"  vs {peer} (rtol {RTOL:g}, error {e_peer:.1e} m, {t_peer:.1f} s): CVODE at rtol "
                      f"{rtol:g} (error {e_cv:.1e} m, {t_cv:.3f} s) is {ratio:.0f}x faster at equal "
                      f"or better accuracy" + (f" (target >= {TARGET_VS_BDF:.0f}x: "

@@ -16,7 +16,8 @@ executor's wall time), what follows them (table, Parquet/CSV, plots: drawn one f
 more than one worker), the CPU time of this process and of the worker processes, and the load average
 (the machine may be shared: a busy machine gives the workers less than a core each).  Local workers are
 forked after :func:`pneusim.scenario.sweep._warm_up` built the model and its compiled kernels once.
-Run with ``-s`` to see the summary table::
+Run with ``-s`` to see the summary table (also written to ``docs/results/sweep.md`` with the commit,
+machine, date and command)::
 
     pytest benchmarks/test_bench_sweep.py --benchmark-only -s
 """
@@ -30,6 +31,7 @@ from pathlib import Path
 import pytest
 
 from pneusim.scenario.sweep import load_sweep, run_sweep
+from results_file import write_results
 
 SWEEP = Path(__file__).resolve().parents[1] / "tests" / "pneusim" / "scenario" / "data" / "tiny-sweep.toml"
 MODES = ["inprocess", "local-1", "local-2", "dask-local-2", "dask-running-2"]
@@ -52,10 +54,15 @@ def sweep(tmp_path_factory):
     if RESULTS:
         base = RESULTS.get("local-1")
         print("\nsweep throughput, 50 runs of 8 s (800 samples) each:")
+        lines = ["50 runs of 8 s (800 samples) each.", "", "| mode | runs/s | against local-1 | where the time goes |",
+                 "|---|---|---|---|"]
         for mode in MODES:
             if mode in RESULTS:
                 ratio = f"{RESULTS[mode] / base:5.2f} x local-1" if base else ""
                 print(f"  {mode:15s} {RESULTS[mode]:6.2f} runs/s  {ratio}  {PARTS.get(mode, '')}")
+                lines.append(f"| {mode} | {RESULTS[mode]:.2f} | {ratio.replace(' x local-1', 'x').strip() or '-'} | "
+                             f"{PARTS.get(mode, '')} |")
+        write_results("sweep", "Sweep throughput", "\n".join(lines))
 
 
 @pytest.fixture(scope="module")

@@ -1,14 +1,15 @@
 """Benchmarks of sysid estimators on 8000 samples, side by side with SIPPY where it has the method.
 
 Run: ``python -m pytest benchmarks/test_bench_sysid.py --benchmark-only -s``.
-Each benchmark prints its best time, the issue's target where there is one,
+Each benchmark prints its best time, the target where there is one,
 and the speed ratio to SIPPY measured in the same run (``sippy-unipi``; its
 tests skip with the reason when it is not installed).  Targets (printed, not
 asserted: machines differ): arx < 5 ms; armax, n4sid < 0.5 s;
 ``RecursiveARX.update`` of a 5th-order model (10 parameters) at least 100x
 faster than real time at 1 kHz, i.e. < 10 us.  sysid limits OpenBLAS to one
 thread inside its estimators; SIPPY runs as shipped, so compare both with
-``OPENBLAS_NUM_THREADS=1`` too.
+``OPENBLAS_NUM_THREADS=1`` too.  The times are written to ``docs/results/sysid.md`` with the
+commit, machine, date and command.
 """
 import contextlib
 import io
@@ -20,15 +21,34 @@ import pytest
 from scipy.signal import lfilter
 
 import sysid
+from results_file import write_results
 
 N = 8000
 RESULTS = {}
+EXTRA = {}
 TARGETS_S = {"arx": 5e-3, "armax": 0.5, "n4sid": 0.5}
 
 
 @pytest.fixture(scope="module", autouse=True)
 def _banner():
     print(f"\nsysid benchmarks, N = {N}, OPENBLAS_NUM_THREADS = {os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
+    yield
+    if not RESULTS:
+        return
+    lines = [f"{N} samples; OPENBLAS_NUM_THREADS {os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}; "
+             "rls per sample, the others per estimate.", "",
+             "| method | sysid | SIPPY | SIPPY / sysid | target |", "|---|---|---|---|---|"]
+    for group in dict.fromkeys(g for g, _ in RESULTS):
+        ours, peer = RESULTS.get((group, "sysid")), RESULTS.get((group, "sippy"))
+        unit, scale = ("us", 1e6) if group == "rls" else ("ms", 1e3)
+        cell = lambda t: f"{t * scale:.4g} {unit}" if t is not None else "-"  # noqa: E731
+        ratio = f"{peer / ours:.3g}x" if ours and peer else "-"
+        target = f"< {TARGETS_S[group] * 1e3:g} ms" if group in TARGETS_S else ""
+        lines.append(f"| {group} | {cell(ours)} | {cell(peer)} | {ratio} | {target} |")
+    if "rls_update_s" in EXTRA:
+        lines += ["", f"`RecursiveARX.update`, 10 parameters: {EXTRA['rls_update_s'] * 1e6:.3g} us a sample, "
+                      f"{1e-3 / EXTRA['rls_update_s']:.0f}x real time at 1 kHz (target 100x)."]
+    write_results("sysid", "sysid estimators against SIPPY", "\n".join(lines))
 
 
 @pytest.fixture(scope="module")
@@ -156,6 +176,7 @@ def test_rls_update_5th_order(benchmark):
     assert np.all(np.isfinite(est.parameters)) and np.all(np.isfinite(est.P)), "the estimator's state must stay finite while it is timed"
     best = benchmark.stats.stats.min
     factor = 1e-3 / best  # real-time factor at 1 kHz sampling
+    EXTRA["rls_update_s"] = best
     benchmark.extra_info["real_time_factor_1kHz"] = factor
     print(f"\nrls update, 10 parameters: {best * 1e6:.3g} us -> {factor:.0f}x real time at 1 kHz "
           f"(target >= 100x: {'met' if factor >= 100 else 'NOT met'})")
