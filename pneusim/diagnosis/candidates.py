@@ -44,13 +44,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import PneusimError, SolverError
-from ..fit import EFFECT_FREE, fit_recording, noise_std_estimate
+from ..fit import fit_recording, noise_std_estimate
 from ..fit.warm_start import warm_states
-from ..fit.parameters import SEARCHED, parameter_bounds, parameter_scale
+from ..fit.parameters import parameter_bounds, parameter_scale
 from ..fit.shooting import FitData, ShootingProblem
 from ..fit import stages as _stages
 from ..model import ActuatorModel, make_effect
-from ..model.chamber import areas_m2
+from ..model.effects import EFFECTS, effect_class
 
 __all__ = ["Candidate", "judge_refit", "candidate_list", "screen", "refit", "noise_levels", "estimation_cost",
            "validation_noise_points", "passes_test", "validation_room", "neutral_effect", "NEUTRAL", "SCREEN_SAMPLES"]
@@ -61,48 +61,18 @@ SCREEN_SAMPLES = 2500
 SCREEN_EVALUATIONS = 6
 #: continuity weight of the screening problem and of the cost comparisons (as in the fit's trust region)
 DEFECT_WEIGHT = _stages.PENALTY_WEIGHT
-#: transport delays scanned when the cross-correlation shows no lag, s (those of at least one sample)
-DELAY_SCAN_S = (0.01, 0.02, 0.04)
-#: spool natural frequencies the valve-dynamics screening starts from, Hz (proportional valves: 5-100 Hz)
-SPOOL_SCAN_HZ = (30.0, 10.0, 4.0)
-#: thermal time constants the heat-transfer screening starts from, s (a switched-on heat transfer is
-#: never the nominal model: the chamber temperatures become states, so it is screened from two starts)
-HEAT_SCAN_S = (0.05, 0.5)
-#: supply lines the droop screening starts from: (conductance over the valve's, supply volume m^3).
-#: Four times the valve's conductance barely sags; a sag the data can show needs a supply line of the
-#: order of the valve's or narrower.  On practice2_27 (truth 0.24 x, 0.17 l; nominal fit 16.9 times
-#: noise) the screening from 4 x, 0.5 l made the residual worse (gain -8.5e4), from 0.5 x, 0.2 l it
-#: gained 3.0e5, above heat transfer's 2.0e5 (which was kept instead, 81.8 % validation)
-SUPPLY_DROOP_SCAN = ((4.0, 5e-4), (0.5, 2e-4))
-#: constant loads the external-load screening starts from, as fractions of the full supply force on the
-#: bore (0: the nominal model; the vocabulary's loads are tenths of it)
-LOAD_SCAN_FRACTIONS = (0.0, 0.15, -0.15)
-#: retract factors the friction-asymmetry screening starts from (1: the nominal model).  Away from 1
-#: the static and Coulomb levels start at 2/(1 + factor) of the nominal fit's, so that the mean of the
-#: two directions stays the level the nominal fit found: from 1.0 a few trust-region steps do not move
-#: the factor on a stick-slip recording (practice2_16, truth 2.88: a gain of 663 of 4.9e5 after 12
-#: steps), from 2.0 with friction kept at the nominal level the start is 376 times the nominal cost
-#: and the steps do not recover it, from 2.0 with the mean kept it gains 8.6e3
-FRICTION_ASYMMETRY_SCAN = (1.0, 2.0, 0.5)
-#: candidates that start away from the nominal model get more trust-region evaluations (so do the
-#: friction-asymmetry starts away from 1: those with a ``start_scale``)
-SCANNED = ("transport_delay", "valve_dynamics", "heat_transfer", "supply_pressure_droop", "external_load")
+#: effects whose screening starts away from the nominal model (each effect's ``scanned``): they get
+#: :data:`DELAY_EVALUATIONS` trust-region evaluations (so do the starts with a ``start_scale``)
+SCANNED = tuple(name for name, cls in EFFECTS.items() if cls.scanned)
 #: trust-region evaluations of a delay candidate: a delay moves every segment's trajectory, and the
 #: nominal parameters need more steps to follow than for a small effect
 DELAY_EVALUATIONS = 12
 
 
-#: the values at which each effect that has one is (nearly) absent, as the screening starts it: a refit
-#: nests the nominal model, so one that ends above the nominal estimation residual has been led into a
-#: worse basin by its screened start (on practice2_07, a 0.7 retract factor, the asymmetry refitted from
-#: its screened factor ended with a BIC change of -5015 against the nominal fit) and is fitted once
-#: more from here.  Effects without such a value (delay, spool, heat, droop) are not retried.
-NEUTRAL = {"leakage": {"conductance_kg_per_s_Pa": 1e-11},
-           "valve_deadband": {"deadband_V": 0.02},
-           "valve_offset": {"offset_V": 0.0},
-           "friction_asymmetry": {"retract_factor": 1.0},
-           "external_load": {"force_N": 0.0, "stiffness_N_per_m": 0.0},
-           "pressure_dependent_friction": {"pressure_coefficient": 0.05}}
+#: the values at which each effect that has one is (nearly) absent, as the screening starts it (each
+#: effect's ``neutral``): a refit that ends above the nominal estimation residual is fitted once more from
+#: here (:func:`retry_from_neutral`).  Effects without such a value are not retried.
+NEUTRAL = {name: dict(cls.neutral) for name, cls in EFFECTS.items() if cls.neutral is not None}
 
 
 @dataclass
@@ -119,86 +89,27 @@ class Candidate:
 
     @property
     def n_added(self) -> int:
-        return max(1, len(self.free)) if self.name != "transport_delay" else 1
+        """Parameters the effect adds for the information criterion (its ``added_parameters``)."""
+        return type(self.effect).added_parameters(self.free)
 
 
 def candidate_list(rig, sample_time_s: float, names=None, delays_s=None) -> list[Candidate]:
     """The screened variants of every vocabulary effect (``names``: restrict to these effects;
-    ``delays_s``: the transport delays to scan, default :data:`DELAY_SCAN_S`).
+    ``delays_s``: the transport delays to scan, default the transport delay's own scan), in registry
+    order: each effect's :meth:`~pneusim.model.effects.Effect.screening_starts`, with its ``fit_free``
+    parameters but those searched by a grid.
 
     Small starting values: the effect is nearly absent, so the screening starts where the nominal fit
     ended.  Effects that have no value equal to the nominal model, or whose parameter moves the
-    response non-linearly, are screened from a few starts (:data:`SPOOL_SCAN_HZ`,
-    :data:`HEAT_SCAN_S`, :data:`LOAD_SCAN_FRACTIONS`, :data:`FRICTION_ASYMMETRY_SCAN`, the delays,
-    :data:`SUPPLY_DROOP_SCAN`).
+    response non-linearly, are screened from a few starts.
     """
-    from ..model.effects import EFFECTS
-
     names = list(EFFECTS) if names is None else list(names)
-    for name in names:
-        if name not in EFFECTS:
-            raise PneusimError(f"unknown effect {name!r}; expected one of: {', '.join(EFFECTS)}")
+    classes = [effect_class(name) for name in names]   # an unknown name is refused before any work
     out = []
-    supply = float(rig.params["supply_Pa"])
-    conductance = float(rig.params["valve_sonic_conductance_m3_per_s_Pa"])
-
-    def free_of(name):
-        return [p for p in EFFECT_FREE.get(name, ()) if p not in SEARCHED]
-
-    for name in names:
-        if name == "leakage":
-            for label, opts in (("leakage (internal, A<->B)", {"kind": "internal"}),
-                                ("leakage (chamber A to atmosphere)", {"kind": "external", "chamber": "a"}),
-                                ("leakage (chamber B to atmosphere)", {"kind": "external", "chamber": "b"})):
-                out.append(Candidate(name, label, make_effect(name, conductance_kg_per_s_Pa=1e-11, **opts),
-                                     free_of(name)))
-        elif name == "transport_delay":
-            for d in delays_s or DELAY_SCAN_S:
-                if d >= 0.99 * sample_time_s:
-                    out.append(Candidate(name, f"transport delay {d * 1e3:.3g} ms", make_effect(name, delay_s=d), []))
-        elif name == "valve_deadband":
-            out.append(Candidate(name, name, make_effect(name, deadband_V=0.02), free_of(name)))
-        elif name == "valve_offset":
-            out.append(Candidate(name, name, make_effect(name, offset_V=0.0), free_of(name)))
-        elif name == "valve_dynamics":
-            for f in SPOOL_SCAN_HZ:
-                out.append(Candidate(name, f"valve dynamics from {f:g} Hz",
-                                     make_effect(name, natural_frequency_Hz=f, damping=0.7), free_of(name)))
-        elif name == "heat_transfer":
-            for tau in HEAT_SCAN_S:
-                out.append(Candidate(name, f"heat transfer from {tau:g} s",
-                                     make_effect(name, time_constant_s=tau,
-                                                 wall_temperature_K=float(rig.params["supply_temperature_K"])),
-                                     free_of(name)))
-        elif name == "friction_asymmetry":
-            for factor in FRICTION_ASYMMETRY_SCAN:
-                mean_kept = {} if factor == 1.0 else {p: 2.0 / (1.0 + factor)
-                                                       for p in ("friction_static_N", "friction_coulomb_N")}
-                out.append(Candidate(name, f"friction asymmetry from {factor:g}",
-                                     make_effect(name, retract_factor=factor), free_of(name), mean_kept))
-        elif name == "supply_pressure_droop":
-            for ratio, volume in SUPPLY_DROOP_SCAN:
-                out.append(Candidate(name, f"supply pressure droop from {ratio:g} x the valve's conductance",
-                                     make_effect(name, supply_volume_m3=volume,
-                                                 supply_conductance_m3_per_s_Pa=ratio * conductance,
-                                                 regulator_Pa=supply), free_of(name)))
-        elif name == "external_load":
-            # also from loads of either sign: far from the optimum a stuck model piston makes the response
-            # to a small load nearly flat (a -100 N load screened from 0 N reached -0.87 N in the steps)
-            area_a, _, _ = areas_m2(float(rig.params["bore_m"]), float(rig.params["rod_m"]))
-            full_force = (supply - float(rig.params["atmosphere_Pa"])) * area_a
-            for fraction in LOAD_SCAN_FRACTIONS:
-                force = fraction * full_force
-                out.append(Candidate(name, f"external load from {force:.0f} N",
-                                     make_effect(name, force_N=force, stiffness_N_per_m=0.0), free_of(name)))
-        elif name == "pressure_dependent_friction":
-            values = {}
-            cls = EFFECTS[name]
-            if "pressure_coefficient" in cls.parameters:
-                values["pressure_coefficient"] = 0.05
-            out.append(Candidate(name, name, make_effect(name, **values), free_of(name)))
-        else:  # an effect added to the vocabulary later: its defaults
-            out.append(Candidate(name, name, make_effect(name), free_of(name)))
+    for name, cls in zip(names, classes):
+        free = [f"{name}.{key}" for key in cls.fit_free if key not in cls.searched]
+        for start in cls.screening_starts(rig.params, sample_time_s, delays_s):
+            out.append(Candidate(name, start.label, start.effect, list(free), dict(start.start_scale)))
     return out
 
 
@@ -378,7 +289,7 @@ def screen(fit, recording, candidate: Candidate | None, noise: dict, samples: in
 def screen_evaluations(candidate: Candidate, evaluations: int = SCREEN_EVALUATIONS) -> int:
     """Trust-region evaluations :func:`screen` gives ``candidate``: more for a scanned effect or one that
     moves nominal parameters (:data:`DELAY_EVALUATIONS`)."""
-    if candidate.name in SCANNED or candidate.start_scale:
+    if type(candidate.effect).scanned or candidate.start_scale:
         return max(evaluations, DELAY_EVALUATIONS)
     return evaluations
 
@@ -413,11 +324,12 @@ def polished_costs(fit, recording, noise: dict, samples: int | None = None,
 
 
 def neutral_effect(candidate: Candidate):
-    """``candidate``'s effect at its :data:`NEUTRAL` values (options kept), or None when it has none."""
-    values = NEUTRAL.get(candidate.name)
+    """``candidate``'s effect at its neutral values (the effect's ``neutral``, :data:`NEUTRAL`; options
+    kept), or None when it has none."""
+    effect = candidate.effect
+    values = type(effect).neutral
     if values is None:
         return None
-    effect = candidate.effect
     return make_effect(candidate.name, **effect.option_values, **{**effect.values, **values})
 
 
@@ -471,24 +383,22 @@ def judge_refit(trial, eff: str, fit1, cost1: float, n_added: int, basis, note: 
 
 def effect_parameters(fit, effect_name: str) -> tuple[dict, dict]:
     """The fitted parameters of ``effect_name`` in ``fit`` (without the prefix), with standard errors;
-    options (leak path, kind) as strings."""
+    the options the effect reports (:meth:`~pneusim.model.effects.Effect.reported_options`) as strings.
+    A parameter the effect finds by a grid search (``searched``) is reported with the scan's error."""
     values, errors = {}, {}
     for e in fit.effects_:
         if e.name != effect_name:
             continue
-        for k, v in e.option_values.items():
-            if effect_name == "leakage" and k == "chamber" and e.option_values.get("kind") == "internal":
-                continue
-            if effect_name == "external_load" and k == "kind":
-                continue
-            values[k] = v
+        cls = type(e)
+        values.update(cls.reported_options(e.option_values))
         for k, v in e.values.items():
             q = f"{e.name}.{k}"
-            if q in fit.parameters or effect_name == "transport_delay":
+            searched = k in cls.searched
+            if q in fit.parameters or searched:
                 values[k] = float(v)
                 p = fit.parameters.get(q)
                 errors[k] = (p.std if p is not None and math.isfinite(p.std) else None)
-                if effect_name == "transport_delay":   # scanned, not fitted: from the scan's curvature
+                if searched:   # scanned, not fitted: from the scan's curvature (:mod:`.delay`)
                     errors[k] = fit.solver.get("delay_scan", {}).get("std_s")
     return values, errors
 

@@ -85,21 +85,15 @@ AT_NOISE_ON_WINDOW = 1.2
 
 
 def one_start_each(candidates) -> list:
-    """The candidates the screening from the data sheet pre-fits: every leak path and every delay (other
-    physics, and a delay has no gradient), and of the other effects' starting magnitudes one each -- the
-    spool at 10 Hz, heat transfer at 50 ms, friction asymmetry at 1, the supply line at half the valve's
-    conductance, no load.  A pre-fit runs to its end from the data sheet, where the screening around a
-    nominal optimum takes a few steps only; the starts scanned for that (:mod:`.candidates`) ended alike
-    here (``practice2_03``: heat transfer from 50 and 500 ms at 4.87 and 4.86 times the noise, friction
-    asymmetry from 0.5, 1 and 2 within 2 %)."""
-    chosen = {"valve_dynamics": ("natural_frequency_Hz", cand.SPOOL_SCAN_HZ[1]),
-              "heat_transfer": ("time_constant_s", cand.HEAT_SCAN_S[0]),
-              "friction_asymmetry": ("retract_factor", 1.0),
-              "supply_pressure_droop": ("supply_volume_m3", cand.SUPPLY_DROOP_SCAN[1][1]),
-              "external_load": ("force_N", 0.0)}
+    """The candidates the screening from the data sheet pre-fits: of each effect's screening starts, the one
+    its ``data_sheet_start`` names (the spool at 10 Hz, heat transfer at 50 ms, friction asymmetry at 1, the
+    supply line at half the valve's conductance, no load), or all of them where it names none (every leak
+    path and every delay: other physics, and a delay has no gradient).  A pre-fit runs to its end from the
+    data sheet, where the screening around a nominal optimum takes a few steps only; the starts scanned
+    for that (:mod:`.candidates`) end alike here."""
     out = []
     for c in candidates:
-        key, value = chosen.get(c.name, (None, None))
+        key, value = type(c.effect).data_sheet_start or (None, None)
         if key is None or math.isclose(c.effect.values[key], value, rel_tol=1e-9, abs_tol=1e-12):
             out.append(c)
     return out

@@ -31,6 +31,7 @@ from ..fit import fit_recording
 from ..fit.setup import rig_of
 from ..fit.stages import MODEL_SHORT
 from ..fit.threads import one_blas_thread
+from ..model.effects import EFFECTS, families as effect_families
 from .cold import (WINDOW_SAMPLES, NominalBaseline, confirm_from_data_sheet, mismatch_window,
                    screen_from_data_sheet)
 from .delay import scan_with_refits
@@ -47,11 +48,9 @@ __all__ = ["diagnose", "MIN_SAMPLES"]
 
 #: a recording shorter than this cannot be split into estimation and validation parts worth fitting
 MIN_SAMPLES = 500
-#: effects with look-alike signatures: when one leads the screening, the others are refitted too
-FAMILIES = (("transport_delay", "valve_dynamics"),
-            ("friction_asymmetry", "external_load", "pressure_dependent_friction"),
-            ("valve_offset", "valve_deadband"),
-            ("leakage", "heat_transfer", "supply_pressure_droop"))
+#: effects with look-alike signatures (each effect's ``family``, in registry order): when one leads the
+#: screening, the others are refitted too
+FAMILIES = tuple(members for members in effect_families().values() if members)
 #: with no effect kept, a nominal residual rms above this multiple of the sensor noise is reported as
 #: an ``other`` finding (the nominal model is clearly short, but no vocabulary effect explains it)
 OTHER_RESIDUAL = 3.0
@@ -307,5 +306,7 @@ def _scan_kept_delay(recording, rig, refits: dict, trials: dict, noise: dict, ba
 
 
 def _family(effect: str) -> tuple:
-    """The look-alike family of ``effect`` (itself alone when it has none)."""
-    return next((family for family in FAMILIES if effect in family), (effect,))
+    """The look-alike family of ``effect``: the effects of its class's ``family`` (:data:`FAMILIES`), itself
+    alone when it is not a vocabulary effect."""
+    cls = EFFECTS.get(effect)
+    return effect_families()[cls.family] if cls is not None else (effect,)

@@ -11,6 +11,7 @@ import time
 
 from ..fit import fit_recording
 from ..fit.stages import MODEL_SHORT
+from ..model.effects import EFFECTS
 from . import candidates as cand
 from .cold import NominalBaseline, data_sheet_start
 from .result import CandidateTrial, Finding
@@ -205,12 +206,10 @@ def _finding(eff: str, fit, fit_before: float, trial: CandidateTrial) -> Finding
 
 
 def _derived(name: str, values: dict, fit) -> dict:
-    """Parameters a user compares with a data sheet, derived from the fitted ones."""
+    """Parameters a user compares with a data sheet, derived from the fitted ones (the effect's own
+    :meth:`~pneusim.model.effects.Effect.derived_parameters`)."""
+    cls = EFFECTS.get(name)
+    if cls is None:
+        return dict(values)
     est = fit.estimates
-    out = dict(values)
-    if name == "friction_asymmetry" and "retract_factor" in values:
-        fc = est.get("friction_coulomb_N", fit.rig_.params["friction_coulomb_N"])
-        fs = est.get("friction_static_N", fit.rig_.params["friction_static_N"])
-        out.update(coulomb_extend_N=fc, coulomb_retract_N=fc * values["retract_factor"],
-                   static_extend_N=fs, static_retract_N=fs * values["retract_factor"])
-    return out
+    return cls.derived_parameters(values, lambda key: est.get(key, fit.rig_.params[key]))

@@ -31,6 +31,7 @@ import math
 
 import numpy as np
 
+from ..model.effects import EFFECTS
 from .locate import operating_conditions, velocity_estimate
 
 __all__ = ["compute_signatures", "evidence_text"]
@@ -147,43 +148,8 @@ def compute_signatures(recording, rig, model_states: dict, velocity_model: np.nd
     return out
 
 
-def _f(value, fmt) -> str:
-    return "n/a" if value is None or not np.isfinite(value) else format(value, fmt)
-
-
 def evidence_text(effect: str, sig: dict) -> str:
-    """The signature numbers that bear on ``effect``, in words."""
-    s = sig
-    if effect == "friction_asymmetry":
-        return (f"velocity residual follows the direction of motion (r = {_f(s['direction_r'], '+.2f')}); mean "
-                f"{_f(s['extend_mean_mm_s'], '+.2f')} mm/s extending, {_f(s['retract_mean_mm_s'], '+.2f')} mm/s retracting")
-    if effect == "external_load":
-        return (f"velocity residual against position r = {_f(s['position_r'], '+.2f')}; mean "
-                f"{_f(s['extend_mean_mm_s'], '+.2f')} mm/s extending, {_f(s['retract_mean_mm_s'], '+.2f')} mm/s retracting")
-    if effect == "pressure_dependent_friction":
-        return f"squared velocity residual grows with |p_A - p_B| (r = {_f(s['pressure_r'], '+.2f')})"
-    if effect == "supply_pressure_droop":
-        return (f"velocity residual grows with time at large opening (r = {_f(s['long_move_r'], '+.2f')}) and "
-                f"with |p_A - p_B| (r = {_f(s['pressure_r'], '+.2f')})")
-    if effect == "transport_delay":
-        return (f"command-residual cross-correlation peaks at a lag of {_f(s['lag_s'] * 1e3, '.0f')} ms "
-                f"(r = {_f(s['lag_r'], '+.2f')})")
-    if effect == "valve_dynamics":
-        return (f"command-residual cross-correlation peaks at a lag of {_f(s['lag_s'] * 1e3, '.0f')} ms "
-                f"(r = {_f(s['lag_r'], '+.2f')}): lag after fast command changes")
-    if effect == "valve_deadband":
-        return (f"flat spot of the command-velocity map around null wider than the model's by {_f(s['flat_spot_V'], '+.3f')} V; "
-                f"small commands move the piston {_f(100 * s['small_command_speed_deficit'], '.0f')} % less than large ones "
-                "relative to the model")
-    if effect == "valve_offset":
-        return (f"measured velocity crosses zero {_f(s['null_shift_V'], '+.3f')} V from the model's null; "
-                f"creep near null {_f(s['creep_mm_s'], '+.3f')} mm/s beyond the model")
-    if effect == "leakage":
-        extra = (f"; pressure residual drifts {_f(s['hold_pressure_drift_kPa_s'], '.2f')} kPa/s while holding"
-                 if "hold_pressure_drift_kPa_s" in s else "")
-        return f"creep near null {_f(s['creep_mm_s'], '+.3f')} mm/s beyond the model{extra}"
-    if effect == "heat_transfer":
-        extra = (f"pressure residual drifts {_f(s['hold_pressure_drift_kPa_s'], '.2f')} kPa/s while holding after moves; "
-                 if "hold_pressure_drift_kPa_s" in s else "")
-        return f"{extra}creep after stops {_f(s['creep_mm_s'], '+.3f')} mm/s beyond the model"
-    return ""
+    """The signature numbers that bear on ``effect``, in words (the effect's own
+    :meth:`~pneusim.model.effects.Effect.evidence`; empty for a name outside the vocabulary)."""
+    cls = EFFECTS.get(effect)
+    return cls.evidence(sig) if cls is not None else ""

@@ -16,6 +16,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import FitError
+from ..model.effects import EFFECTS, POSITIVE_NEAR_START
 
 __all__ = ["DEFAULT_FREE", "EFFECT_FREE", "parameter_scale", "parameter_bounds", "check_free", "clip_inside"]
 
@@ -24,49 +25,24 @@ DEFAULT_FREE = ("valve_sonic_conductance_m3_per_s_Pa", "valve_critical_pressure_
                 "friction_static_N", "friction_coulomb_N", "friction_stribeck_velocity_m_per_s",
                 "friction_viscous_N_s_per_m", "moving_mass_kg")
 
-#: the parameters an effect adds to the free set when it is switched on in a fit
-EFFECT_FREE = {
-    "leakage": ("leakage.conductance_kg_per_s_Pa",),
-    "valve_deadband": ("valve_deadband.deadband_V",),
-    "valve_offset": ("valve_offset.offset_V",),
-    "valve_dynamics": ("valve_dynamics.natural_frequency_Hz", "valve_dynamics.damping"),
-    "transport_delay": ("transport_delay.delay_s",),
-    "heat_transfer": ("heat_transfer.time_constant_s",),
-    "friction_asymmetry": ("friction_asymmetry.retract_factor",),
-    "supply_pressure_droop": ("supply_pressure_droop.supply_volume_m3",
-                              "supply_pressure_droop.supply_conductance_m3_per_s_Pa"),
-    "external_load": ("external_load.force_N", "external_load.stiffness_N_per_m"),
-    # the reference difference is a choice of reference, degenerate with the friction levels: never freed
-    "pressure_dependent_friction": ("pressure_dependent_friction.pressure_coefficient",),
-}
+#: the parameters an effect adds to the free set when it is switched on in a fit (each effect's ``fit_free``,
+#: in registry order)
+EFFECT_FREE = {name: tuple(f"{name}.{key}" for key in cls.fit_free) for name, cls in EFFECTS.items()}
 
-#: parameters found by a search over a grid instead of by gradient (they move command switch times)
-SEARCHED = ("transport_delay.delay_s",)
+#: parameters found by a search over a grid instead of by gradient (each effect's ``searched``: they move
+#: command switch times)
+SEARCHED = tuple(f"{name}.{key}" for name, cls in EFFECTS.items() for key in cls.searched)
 
-#: (typical magnitude, lower, upper) in SI units; None: from the starting value
-_TABLE = {
+#: (typical magnitude, lower, upper) in SI units; None: from the starting value.  The nominal model's rows
+#: here; each effect's rows (``EFFECT.PARAM``) are its ``fit_scale``
+_NOMINAL_TABLE = {
     "valve_critical_pressure_ratio": (0.3, 0.05, 0.95),
     "friction_static_N": (None, 0.0, None),
     "friction_coulomb_N": (None, 0.0, None),
     "friction_viscous_N_s_per_m": (None, 0.0, None),
-    "valve_deadband.deadband_V": (0.2, 0.0, 2.5),
-    "valve_offset.offset_V": (0.1, -2.0, 2.0),
-    "leakage.conductance_kg_per_s_Pa": (1e-9, 0.0, None),
-    "external_load.force_N": (50.0, None, None),
-    "external_load.stiffness_N_per_m": (500.0, None, None),
-    "friction_asymmetry.retract_factor": (1.0, 0.05, 20.0),
-    # proportional valves' spools: a few Hz to a few hundred, well damped.  A fit that wanders to a fast,
-    # barely damped spool makes the model stiff and ringing, each evaluation then costs tens of steps a
-    # sample (diagnosis's screening of a -450 N load recording went to 568 Hz and a damping of 0.09: 276 s
-    # for one pre-fit), and no rig's spool rings like that
-    "valve_dynamics.natural_frequency_Hz": (None, 0.5, 300.0),
-    "valve_dynamics.damping": (0.7, 0.2, 5.0),
-    "heat_transfer.time_constant_s": (None, 1e-3, 100.0),
-    "heat_transfer.wall_temperature_K": (293.15, 200.0, 400.0),
-    "transport_delay.delay_s": (0.01, 0.0, 0.5),
-    # friction grows with the pressure across the seal: k >= 0 (the effect's own range)
-    "pressure_dependent_friction.pressure_coefficient": (1.0, 0.0, 20.0),
 }
+_TABLE = {**_NOMINAL_TABLE,
+          **{f"{name}.{key}": row for name, cls in EFFECTS.items() for key, row in cls.fit_scale.items()}}
 
 
 def parameter_scale(name: str, start: float) -> float:
@@ -79,9 +55,9 @@ def parameter_scale(name: str, start: float) -> float:
 
 def parameter_bounds(name: str, start: float) -> tuple[float, float]:
     """Physical ``(lower, upper)`` bounds in SI units."""
-    typical, lo, hi = _TABLE.get(name, (None, "pos", "pos"))
+    typical, lo, hi = _TABLE.get(name, POSITIVE_NEAR_START)
     # never narrower than the typical magnitude: an effect starts where diagnosis's screening left it,
-    # often near zero (a load's force at -0.87 N once bounded the refit to +-43 N with -100 N true)
+    # often near zero, and bounds that followed the start down would exclude the true value
     magnitude = max(abs(start), typical or 0.0) or parameter_scale(name, start)
     if lo == "pos":  # positive parameters: within a factor 50 of the start
         lo, hi = magnitude / 50.0, magnitude * 50.0
@@ -95,13 +71,11 @@ def parameter_bounds(name: str, start: float) -> tuple[float, float]:
 
 def _within_effect_range(name: str, lo: float, hi: float, magnitude: float) -> tuple[float, float]:
     """``(lo, hi)`` narrowed to the effect's own physical range (:attr:`Effect.ranges`) for an
-    ``EFFECT.PARAM`` name: a fitted value must make a valid effect (a spring's stiffness of -118 N/m
-    ended a diagnosis refit with "stiffness_N_per_m must be >= 0" before)."""
+    ``EFFECT.PARAM`` name: a fitted value must make a valid effect (a negative spring stiffness would end
+    a diagnosis refit with "stiffness_N_per_m must be >= 0")."""
     effect, _, key = name.partition(".")
     if not key:
         return lo, hi
-    from ..model.effects import EFFECTS
-
     cls = EFFECTS.get(effect)
     bounds = getattr(cls, "ranges", {}).get(key) if cls is not None else None
     if bounds is None:

@@ -205,8 +205,7 @@ class ActuatorModel:
         area_a, area_b, area_rod = _areas(lambda k: values[k])
         external = 0.0
         for e in self.effects:
-            if e.name == "external_load":
-                external = values["external_load.force_N"] - values["external_load.stiffness_N_per_m"] * position_m
+            external = external + e.static_force_N(values, position_m)
         p_b = 0.5 * (values["supply_Pa"] + values["exhaust_Pa"])
         p_a = (p_b * area_b + values["atmosphere_Pa"] * area_rod - external) / area_a
         p_a = min(max(p_a, values["exhaust_Pa"]), values["supply_Pa"])

@@ -1,39 +1,126 @@
-"""Optional effects: physics the nominal model leaves out (``shared/spec/diagnosis.md``).
+"""The effect contract: everything the model, the fit and the diagnosis need to know about one effect.
 
-Each effect is a small component with one contract: its numeric parameters
-(``parameters``: name -> default, SI unit in the name), its structural options
-(``options``: name -> allowed values), its extra states, and hooks that the
-actuator assembly calls at fixed places.  A hook that an effect does not
-override leaves the nominal physics unchanged, so any set of effects composes.
+An optional effect is physics the nominal model leaves out (``shared/spec/diagnosis.md``).  Each one
+is a subclass of :class:`Effect` in its own module of this package, and declares there:
 
-Parameters enter the CasADi graph as symbols named ``EFFECT.PARAM`` (for
-example ``valve_deadband.deadband_V``), so a fit changes them without a rebuild.
+* **the law** -- ``description`` (one line, for ``pneusim effects``), ``source`` (where the law comes
+  from) and the class docstring with the equation;
+* **its parameters** -- ``parameters`` (name -> default, SI unit in the name), ``ranges`` (the
+  physical range of each), ``options`` (name -> allowed values, the first the default) and
+  ``states`` (its own state variables);
+* **its hooks** -- the methods the actuator assembly calls at fixed places (a hook an effect does not
+  override leaves the nominal physics unchanged, so any set of effects composes), and
+  :meth:`Effect.static_force_N` for the state at rest;
+* **what a fit frees** -- ``fit_free`` (parameter names), ``searched`` (those found by a search over a
+  grid instead of by gradient) and ``fit_scale`` (the optimiser's scale and bounds of each);
+* **how diagnosis screens it** -- ``neutral`` (the values at which it is nearly absent, or ``None``),
+  :meth:`Effect.screening_starts`, ``data_sheet_start``, ``scanned``,
+  :meth:`Effect.added_parameters`, ``family`` (one of :data:`LOOK_ALIKE_FAMILIES`),
+  :meth:`Effect.evidence`, :meth:`Effect.reported_options` and :meth:`Effect.derived_parameters`.
+
+A fact every effect must declare starts as :data:`REQUIRED`; :func:`missing_facts` lists those an
+effect class left so (``tests/pneusim/model/test_effect_contract.py`` fails on any).  The registry
+(:mod:`.registry`) lists the effect classes; the fit and the diagnosis read these facts only through it.
+
+Parameters enter the CasADi graph as symbols named ``EFFECT.PARAM`` (for example
+``valve_deadband.deadband_V``), so a fit changes them without a rebuild.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
 
-import casadi as ca
+from ...errors import PneusimError
 
-from ..errors import PneusimError
-from . import chamber, valve
+__all__ = ["Effect", "ScreeningStart", "REQUIRED", "LOOK_ALIKE_FAMILIES", "POSITIVE", "NON_NEGATIVE",
+           "POSITIVE_NEAR_START", "in_range", "range_words", "missing_facts", "number_text"]
 
-__all__ = ["Effect", "EFFECTS", "make_effect", "parse_effect_text", "seal_pressure_factor"]
+
+class _Required:
+    """Marks a fact an effect class must declare (see :func:`missing_facts`)."""
+
+    def __repr__(self):
+        return "REQUIRED"
+
+
+#: the value of a fact an effect has not declared yet
+REQUIRED = _Required()
+
+#: look-alike families: effects whose signatures a recording can confuse.  When one of a family leads
+#: the diagnosis's screening, the others are refitted too.
+LOOK_ALIKE_FAMILIES = {
+    "timing": "the response comes late after command changes (dead time, spool lag)",
+    "friction and force": "a force in the piston's balance that depends on direction, position or pressure",
+    "valve null": "the valve's behaviour around its null (where it opens, how far from nominal)",
+    "slow pneumatic": "chamber pressures that drift or sag slowly (leaks, heat exchange, the supply line)",
+}
+
+
+@dataclass
+class ScreeningStart:
+    """One start of the diagnosis's screening of an effect.
+
+    Attributes
+    ----------
+    label : str
+        What the user reads in the progress and the report (``"valve dynamics from 10 Hz"``).
+    effect : Effect
+        The effect switched on, at its starting values and options.
+    start_scale : dict
+        Nominal parameters multiplied by these factors at the start (empty: the nominal fit's values).
+    """
+
+    label: str
+    effect: "Effect"
+    start_scale: dict = field(default_factory=dict)
 
 
 class Effect:
-    """Base class: an optional part of the actuator model, off unless listed."""
+    """Base class: an optional part of the actuator model, off unless listed.
 
+    Subclasses declare the class attributes below (those set to :data:`REQUIRED` must be declared)
+    and override :meth:`screening_starts` and :meth:`evidence`; see the module docstring and
+    ``docs/adding-an-effect.md``.
+    """
+
+    # --- the law ---------------------------------------------------------
     name = ""
     description = ""
+    #: where the law comes from: the vocabulary entry and the reference of the equation
+    source: str = REQUIRED
     parameters: Mapping[str, float] = {}
     options: Mapping[str, tuple[str, ...]] = {}
     states: tuple[str, ...] = ()
     #: physical range of a parameter, ``name: (low, high, low_included, high_included)``; any
     #: parameter not listed must only be finite
     ranges: Mapping[str, tuple[float, float, bool, bool]] = {}
+
+    # --- the fit -----------------------------------------------------------
+    #: parameters (names without the ``EFFECT.`` prefix) a fit frees when the effect is switched on
+    fit_free: tuple[str, ...] = REQUIRED
+    #: of ``fit_free``: those found by a search over a grid instead of by gradient
+    searched: tuple[str, ...] = ()
+    #: the optimiser's ``(typical magnitude, lower, upper)`` of a parameter, SI units: the typical
+    #: magnitude is the scale of ``theta = value / scale`` (``None``: the starting value's); a ``None``
+    #: bound is 50 times the magnitude on that side; :data:`POSITIVE_NEAR_START` keeps the parameter
+    #: within a factor 50 of its start.  Bounds are then narrowed to ``ranges``.  Every parameter in
+    #: ``fit_free`` needs a row (see :func:`pneusim.fit.parameters.parameter_bounds`)
+    fit_scale: Mapping[str, tuple] = {}
+
+    # --- the diagnosis -------------------------------------------------------
+    #: one of :data:`LOOK_ALIKE_FAMILIES`
+    family: str = REQUIRED
+    #: the values at which the effect is (nearly) absent, as its screening starts it: a refit nests the
+    #: nominal model, so one that ends above the nominal residual is fitted once more from here.
+    #: ``None``: the effect has no such value (it is never the nominal model) and is not retried
+    neutral: Mapping[str, float] | None = REQUIRED
+    #: the one screening start the screening from the data sheet keeps: ``(parameter, value)``, the start
+    #: whose parameter has that value; ``None``: every start (they are different physics or a scan)
+    data_sheet_start: tuple[str, float] | None = REQUIRED
+    #: True when the screening starts away from the nominal model: it gets more trust-region evaluations
+    scanned: bool = False
 
     def __init__(self, **values):
         self.values = dict(self.parameters)
@@ -107,6 +194,12 @@ class Effect:
     def initial_state(self, params: Mapping[str, float], opening0: float) -> dict:
         return {}
 
+    def static_force_N(self, params: Mapping[str, float], position_m: float) -> float:
+        """Force this effect puts on the piston at rest at ``position_m``, N (positive pushes out),
+        from the numeric parameter values ``params`` (``EFFECT.PARAM`` names): the initial state's
+        pressures balance it (:meth:`~pneusim.model.ActuatorModel.initial_state`)."""
+        return 0.0
+
     #: seconds by which the valve sees the command late (handled by the solver)
     def command_delay_s(self) -> float:
         return 0.0
@@ -114,10 +207,52 @@ class Effect:
     def p(self, ctx, key):
         return ctx.param(f"{self.name}.{key}")
 
+    # --- diagnosis ------------------------------------------------------------
+    @classmethod
+    def screening_starts(cls, rig_values: Mapping[str, float], sample_time_s: float,
+                         delays_s: Sequence[float] | None = None) -> list[ScreeningStart]:
+        """The starts the diagnosis screens this effect from, in order.
+
+        Parameters
+        ----------
+        rig_values : mapping
+            The rig's data-sheet parameters (rig file names, SI units).
+        sample_time_s : float
+            The recording's sample time, s.
+        delays_s : sequence of float, optional
+            Transport delays to scan, s (read by the transport delay only).
+        """
+        raise NotImplementedError(f"effect {cls.name} declares no screening starts")
+
+    @classmethod
+    def evidence(cls, signatures: Mapping[str, float]) -> str:
+        """The signature numbers that bear on this effect, in words (``signatures``: the dict of
+        :func:`pneusim.diagnosis.signatures.compute_signatures`)."""
+        raise NotImplementedError(f"effect {cls.name} declares no evidence text")
+
+    @classmethod
+    def added_parameters(cls, free: Sequence[str]) -> int:
+        """Parameters the effect adds for the information criterion, given the ``free`` ones."""
+        return max(1, len(free))
+
+    @classmethod
+    def reported_options(cls, option_values: Mapping[str, str]) -> dict:
+        """The options a finding reports (those that say something about the fitted effect)."""
+        return dict(option_values)
+
+    @classmethod
+    def derived_parameters(cls, values: Mapping[str, float], fitted) -> dict:
+        """``values`` (the fitted effect parameters, no prefix) plus the parameters a user compares with
+        a data sheet, derived from them; ``fitted(name)`` gives a fitted rig parameter's value."""
+        return dict(values)
+
 
 _INF = math.inf
 POSITIVE = (0.0, _INF, False, False)
 NON_NEGATIVE = (0.0, _INF, True, False)
+#: the fit's row (see :attr:`Effect.fit_scale`) of a positive parameter kept within a factor 50 of its
+#: start (a real rig differs from its data sheet by tens of percent, not by orders of magnitude)
+POSITIVE_NEAR_START = (None, "pos", "pos")
 
 
 def in_range(value: float, bounds) -> bool:
@@ -140,226 +275,17 @@ def range_words(bounds) -> str:
     return f"in {'[' if lo_in else '('}{lo:g}, {hi:g}{']' if hi_in else ')'}"
 
 
-class Leakage(Effect):
-    name = "leakage"
-    description = "laminar air flow across the piston seal (A<->B) or from a chamber to atmosphere"
-    parameters = {"conductance_kg_per_s_Pa": 1.0e-9}
-    ranges = {"conductance_kg_per_s_Pa": NON_NEGATIVE}
-    options = {"kind": ("internal", "external"), "chamber": ("a", "b")}
-
-    def extra_flows(self, ctx):
-        g = self.p(ctx, "conductance_kg_per_s_Pa")
-        if self.option_values["kind"] == "internal":
-            q_ab = g * (ctx.p_a - ctx.p_b)
-            t_up = ca.if_else(q_ab >= 0, ctx.T_a, ctx.T_b)
-            return [("a", -q_ab, t_up), ("b", q_ab, t_up)]
-        which = self.option_values["chamber"]
-        p_ch, t_ch = (ctx.p_a, ctx.T_a) if which == "a" else (ctx.p_b, ctx.T_b)
-        q_in = g * (ctx.param("atmosphere_Pa") - p_ch)
-        t_in = ca.if_else(q_in >= 0, ctx.param("supply_temperature_K"), t_ch)
-        return [(which, q_in, t_in)]
+def number_text(value, fmt: str) -> str:
+    """``value`` formatted with ``fmt`` for an evidence text, ``'n/a'`` when it is None or not finite."""
+    return "n/a" if value is None or not math.isfinite(value) else format(value, fmt)
 
 
-class ValveDeadband(Effect):
-    name = "valve_deadband"
-    description = "spool overlap: no flow while the command is within +-d of null"
-    parameters = {"deadband_V": 0.2}
-    ranges = {"deadband_V": NON_NEGATIVE}
-
-    def deadband_V(self, ctx):
-        return self.p(ctx, "deadband_V")
-
-
-class ValveOffset(Effect):
-    name = "valve_offset"
-    description = "the valve's true null is the nominal null plus an offset"
-    parameters = {"offset_V": 0.1}
-
-    def valve_null_V(self, ctx, null_V):
-        return null_V + self.p(ctx, "offset_V")
-
-
-class ValveDynamics(Effect):
-    name = "valve_dynamics"
-    description = "spool opening follows the commanded opening through a second-order lag"
-    parameters = {"natural_frequency_Hz": 20.0, "damping": 0.7}
-    ranges = {"natural_frequency_Hz": POSITIVE, "damping": POSITIVE}
-    states = ("spool_opening", "spool_rate_per_s")
-
-    def opening(self, ctx, commanded_opening):
-        ctx.commanded_opening = commanded_opening
-        return ca.fmin(ca.fmax(ctx.x["spool_opening"], -1.0), 1.0)
-
-    def derivatives(self, ctx):
-        omega = 2.0 * math.pi * self.p(ctx, "natural_frequency_Hz")
-        zeta = self.p(ctx, "damping")
-        xv, rate = ctx.x["spool_opening"], ctx.x["spool_rate_per_s"]
-        accel = omega**2 * (ctx.commanded_opening - xv) - 2.0 * zeta * omega * rate
-        return {"spool_opening": rate, "spool_rate_per_s": accel}
-
-    def initial_state(self, params, opening0):
-        return {"spool_opening": opening0, "spool_rate_per_s": 0.0}
-
-
-class TransportDelay(Effect):
-    name = "transport_delay"
-    description = "dead time between the command and the valve (tubing, DAQ latency)"
-    parameters = {"delay_s": 0.01}
-    #: at most 10 s: tubing and DAQ latency are milliseconds, and the sample loop holds the delayed commands
-    #: in a buffer of delay / sample time values (a delay of 1e9 s asked for 7 TiB)
-    ranges = {"delay_s": (0.0, 10.0, True, True)}
-
-    def command_delay_s(self):
-        return self.values["delay_s"]
-
-
-class HeatTransfer(Effect):
-    name = "heat_transfer"
-    description = "heat exchange between chamber air and walls (not adiabatic)"
-    parameters = {"time_constant_s": 0.1, "wall_temperature_K": 293.15}
-    ranges = {"time_constant_s": POSITIVE, "wall_temperature_K": POSITIVE}
-    states = ("temperature_a_K", "temperature_b_K")
-
-    def heat_rates_W(self, ctx):
-        # tau is the time constant of the air temperature at constant volume:
-        # m c_v dT/dt = Q = m c_v (T_w - T) / tau
-        tau = self.p(ctx, "time_constant_s")
-        t_wall = self.p(ctx, "wall_temperature_K")
-        cv = chamber.R_AIR_J_PER_KG_K / (chamber.GAMMA - 1.0)
-        mass_a = ctx.p_a * ctx.V_a / (chamber.R_AIR_J_PER_KG_K * ctx.T_a)
-        mass_b = ctx.p_b * ctx.V_b / (chamber.R_AIR_J_PER_KG_K * ctx.T_b)
-        return mass_a * cv * (t_wall - ctx.T_a) / tau, mass_b * cv * (t_wall - ctx.T_b) / tau
-
-    def derivatives(self, ctx):
-        return {"temperature_a_K": ctx.dT_a, "temperature_b_K": ctx.dT_b}
-
-    def initial_state(self, params, opening0):
-        t0 = params["heat_transfer.wall_temperature_K"]
-        return {"temperature_a_K": t0, "temperature_b_K": t0}
-
-
-class FrictionAsymmetry(Effect):
-    name = "friction_asymmetry"
-    description = "static and Coulomb friction multiplied by a factor when retracting"
-    parameters = {"retract_factor": 1.5}
-    ranges = {"retract_factor": POSITIVE}
-
-    def friction_factor(self, ctx):
-        return ca.if_else(ctx.v < 0, self.p(ctx, "retract_factor"), 1.0)
-
-
-class SupplyPressureDroop(Effect):
-    name = "supply_pressure_droop"
-    description = "valve fed from a volume refilled from a regulator through a restriction"
-    parameters = {"supply_volume_m3": 2.0e-4, "supply_conductance_m3_per_s_Pa": 5.0e-9,
-                  "regulator_Pa": 701325.0}
-    ranges = {"supply_volume_m3": POSITIVE, "supply_conductance_m3_per_s_Pa": POSITIVE, "regulator_Pa": POSITIVE}
-    states = ("supply_pressure_Pa",)
-
-    def supply_Pa(self, ctx):
-        return ctx.x["supply_pressure_Pa"]
-
-    def derivatives(self, ctx):
-        # isothermal supply volume: the line and receiver walls hold the air at supply temperature
-        t_s = ctx.param("supply_temperature_K")
-        refill = valve.iso6358_mass_flow(self.p(ctx, "supply_conductance_m3_per_s_Pa"),
-                                         ctx.param("valve_critical_pressure_ratio"),
-                                         self.p(ctx, "regulator_Pa"), ctx.supply, t_s, t_s)
-        rate = chamber.R_AIR_J_PER_KG_K * t_s / self.p(ctx, "supply_volume_m3") * (refill - ctx.supply_draw)
-        return {"supply_pressure_Pa": rate}
-
-    def initial_state(self, params, opening0):
-        return {"supply_pressure_Pa": params["supply_pressure_droop.regulator_Pa"]}
-
-
-class ExternalLoad(Effect):
-    name = "external_load"
-    description = "a force not in the nominal model: constant (gravity, process load) plus a spring"
-    parameters = {"force_N": 0.0, "stiffness_N_per_m": 0.0}
-    ranges = {"stiffness_N_per_m": NON_NEGATIVE}
-    options = {"kind": ("constant", "spring")}
-
-    def external_force_N(self, ctx):
-        return self.p(ctx, "force_N") - self.p(ctx, "stiffness_N_per_m") * ctx.x_pos
-
-
-#: Pa: |p_A - p_B| is smoothed as d tanh(d / this): within 0.1 Pa of |d| above 6 kPa, at most 0.28 of this below
-PRESSURE_SMOOTHING_PA = 1000.0
-
-
-def seal_pressure_factor(difference_Pa, pressure_coefficient, reference_difference_Pa, supply_gauge_Pa,
-                         tanh=ca.tanh):
-    """Factor on the static and Coulomb levels of :class:`PressureDependentFriction`, dimensionless.
-
-    ``(1 + k |d| / S) / (1 + k d_ref / S)`` with ``d = p_A - p_B`` (Pa), ``|d|`` smoothed as
-    ``d tanh(d / PRESSURE_SMOOTHING_PA)``, ``S`` the supply gauge pressure (Pa).  Works on CasADi
-    symbols, and on NumPy arrays with ``tanh=numpy.tanh``.
-    """
-    magnitude = difference_Pa * tanh(difference_Pa / PRESSURE_SMOOTHING_PA)
-    return ((1.0 + pressure_coefficient * magnitude / supply_gauge_Pa)
-            / (1.0 + pressure_coefficient * reference_difference_Pa / supply_gauge_Pa))
-
-
-class PressureDependentFriction(Effect):
-    """Seal friction that grows with the pressure difference across the piston seal.
-
-    The law of the vocabulary (``shared/spec/diagnosis.md``): static and Coulomb
-    levels are ``F_0 (1 + k |p_A - p_B| / S)``, with ``F_0`` the level at zero
-    difference, ``k = pressure_coefficient`` (dimensionless) and ``S`` the supply
-    gauge pressure ``supply_Pa - atmosphere_Pa`` of the rig (Pa).  Viscous
-    friction and the Stribeck velocity are unchanged.
-
-    Parameterisation: the rig's ``friction_static_N`` and ``friction_coulomb_N``
-    stay the levels *at* ``reference_difference_Pa`` (``d_ref``), so the effect
-    multiplies them by ``(1 + k |d| / S) / (1 + k d_ref / S)``.  A constant-friction
-    (nominal) fit finds about the level at the pressure differences the recording
-    runs at; with ``d_ref`` there (default 50 kPa: a rig at rest near mid-stroke
-    holds 30-45 kPa across its seal, and moves start from there), the nominal
-    estimates are the right starting values when the effect is switched on, the
-    levels keep their meaning, and ``k`` is nearly uncorrelated with them.  With
-    the levels at zero difference instead, switching the effect on would move
-    the levels by a factor ``1 + k d_ref / S`` and tie them to ``k``.  ``d_ref``
-    is a choice of reference, not a property of the seal: do not free it in a fit
-    (it is degenerate with the levels); set it, e.g., to the typical ``|p_A - p_B|``
-    of the recording.  ``k = 0`` is the nominal model exactly.
-
-    ``|p_A - p_B|`` is smoothed (:data:`PRESSURE_SMOOTHING_PA`) so that the
-    right-hand side stays differentiable for CVODE's Newton iteration and the
-    fit's sensitivities, like the ``tanh`` of the friction through zero velocity.
-    """
-
-    name = "pressure_dependent_friction"
-    description = ("static and Coulomb friction that grow with |p_A - p_B|: "
-                   "level(d) = level(d_ref) (1 + k|d|/S) / (1 + k d_ref/S), S the supply gauge pressure")
-    parameters = {"pressure_coefficient": 2.0, "reference_difference_Pa": 5.0e4}
-    ranges = {"pressure_coefficient": NON_NEGATIVE, "reference_difference_Pa": NON_NEGATIVE}
-
-    def friction_factor(self, ctx):
-        return seal_pressure_factor(ctx.p_a - ctx.p_b, self.p(ctx, "pressure_coefficient"),
-                                    self.p(ctx, "reference_difference_Pa"),
-                                    ctx.param("supply_Pa") - ctx.param("atmosphere_Pa"))
-
-
-EFFECTS: dict[str, type[Effect]] = {cls.name: cls for cls in (
-    Leakage, ValveDeadband, ValveOffset, ValveDynamics, TransportDelay, HeatTransfer,
-    FrictionAsymmetry, SupplyPressureDroop, ExternalLoad, PressureDependentFriction)}
-
-
-def make_effect(name: str, **values) -> Effect:
-    """Build an effect by its vocabulary name, e.g. ``make_effect('valve_deadband', deadband_V=0.3)``."""
-    if name not in EFFECTS:
-        raise PneusimError(f"unknown effect {name!r}; expected one of: {', '.join(EFFECTS)}")
-    return EFFECTS[name](**values)
-
-
-def parse_effect_text(text: str) -> Effect:
-    """Parse the command-line form ``NAME:PARAM=VALUE,PARAM=VALUE`` (``NAME`` alone for defaults)."""
-    name, _, rest = text.partition(":")
-    values = {}
-    for item in filter(None, (s.strip() for s in rest.split(","))):
-        key, eq, value = item.partition("=")
-        if not eq:
-            raise PneusimError(f"--effect {text!r}: expected NAME:PARAM=VALUE[,PARAM=VALUE...], "
-                               f"got {item!r} without '='")
-        values[key.strip()] = value.strip()
-    return make_effect(name.strip(), **values)
+def missing_facts(cls: type[Effect]) -> list[str]:
+    """The facts ``cls`` has not declared: attributes still :data:`REQUIRED`, and the methods
+    :meth:`Effect.screening_starts` and :meth:`Effect.evidence` when not overridden."""
+    missing = [key for key in ("source", "fit_free", "family", "neutral", "data_sheet_start")
+               if getattr(cls, key) is REQUIRED]
+    for method in ("screening_starts", "evidence"):
+        if getattr(cls, method).__func__ is getattr(Effect, method).__func__:
+            missing.append(method)
+    return missing
