@@ -19,9 +19,10 @@ import numpy as np
 
 from ._blas import one_blas_thread
 from ._checks import check_data, check_order
-from .arx import ARX, arx_regressors, _qr_lstsq
+from .arx import ARX, arx_regressors
 from .data import IDData
 from .errors import SysidError
+from .linalg import qr_lstsq
 from .predict import predict
 
 __all__ = ["ResidResult", "resid", "aic", "fpe", "bic", "struc", "arxstruc", "selstruc", "delayest"]
@@ -217,7 +218,7 @@ def delayest(data: IDData, na: int = 2, nb: int = 2, nk_min: int = 0, nk_max: in
     best, best_nk = np.inf, nk_min
     for nk in range(nk_min, nk_max + 1):
         Phi, tgt, n = arx_regressors(data.y, data.u, na, nb, nk)
-        _, rss, _ = _qr_lstsq(Phi[n0 - n:], tgt[n0 - n:])
+        _, rss, _ = qr_lstsq(Phi[n0 - n:], tgt[n0 - n:])
         if rss < best * (1 - 1e-9):
             best, best_nk = rss, nk
     return best_nk

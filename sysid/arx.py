@@ -14,6 +14,7 @@ from ._checks import check_data, check_enough_data, check_order, check_orders, s
 from ._diagnose import finish
 from .data import IDData
 from .errors import SysidError
+from .linalg import qr_lstsq
 from .polynomial import IDPoly
 
 __all__ = ["ARX", "arx", "arx_regressors"]
@@ -40,51 +41,6 @@ def arx_regressors(y: np.ndarray, u: np.ndarray, na: int, nb: int, nk: int):
         d = nk + j
         Phi[:, na + j] = u[n - d:N - d]
     return Phi, y[n:], n
-
-
-def _qr_lstsq(Phi: np.ndarray, target: np.ndarray, what: str | None = None):
-    """Least squares by QR of ``[Phi, target]``.
-
-    Parameters
-    ----------
-    Phi : ndarray, shape (n, d)
-    target : ndarray, shape (n,)
-    what : str or None
-        Name of the model for the error message.  When given, a rank-deficient
-        ``Phi`` raises :class:`SysidError`; otherwise the minimum-norm solution
-        is returned (internal start-value computations).
-
-    Returns
-    -------
-    theta : ndarray, shape (d,)
-    rss : float
-        Residual sum of squares.
-    R11 : ndarray, shape (d, d)
-        Upper-triangular factor of ``Phi``.
-
-    Notes
-    -----
-    Only numpy's LAPACK is used: alternating between numpy's and scipy's
-    OpenBLAS builds makes the idle thread pool of one spin against the other
-    (milliseconds per switch on a busy machine).
-    """
-    d = Phi.shape[1]
-    R = np.linalg.qr(np.column_stack([Phi, target]), mode="r")
-    R11 = R[:d, :d]
-    rss = float(R[d, d] ** 2) if R.shape[0] > d else 0.0
-    # column i is (numerically) a combination of columns 0..i-1 when |R_ii| << |Phi_i|
-    colnorm = np.sqrt(np.einsum("ij,ij->j", Phi, Phi))
-    tol = max(Phi.shape) * np.finfo(float).eps
-    bad = np.flatnonzero(np.abs(np.diag(R11)) <= tol * np.maximum(colnorm, np.finfo(float).tiny))
-    if bad.size:
-        if what is not None:
-            raise SysidError(
-                f"the data cannot support {what}: regressor {int(bad[0]) + 1} of {d} is a linear combination "
-                f"of the others (input not persistently exciting, or orders too high for noise-free data).")
-        theta = np.linalg.lstsq(R11, R[:d, d], rcond=None)[0]
-        return theta, rss, R11
-    theta = np.linalg.solve(R11, R[:d, d])
-    return theta, rss, R11
 
 
 class ARX:
@@ -126,7 +82,7 @@ class ARX:
         original = data
         data, sy, su = scaled(data)
         Phi, target, n = arx_regressors(data.y, data.u, na, nb, nk)
-        theta, rss, R11 = _qr_lstsq(Phi, target, what=f"ARX[{na} {nb} {nk}]" if strict else None)
+        theta, rss, R11 = qr_lstsq(Phi, target, what=f"ARX[{na} {nb} {nk}]" if strict else None)
         neff, d = target.size, na + nb
         lam = rss / max(neff - d, 1)
         try:

@@ -28,9 +28,10 @@ from scipy.signal import lfilter
 from ._blas import one_blas_thread
 from ._checks import check_data, check_enough_data, check_order, check_orders, scaled, unscale_poly
 from ._diagnose import finish
-from .arx import _qr_lstsq, arx_regressors
+from .arx import arx_regressors
 from .data import IDData
 from .errors import SysidError
+from .linalg import qr_lstsq
 from .polynomial import IDPoly, is_stable_poly, reflect_roots
 
 __all__ = ["PEM", "ARMAX", "OE", "BJ", "armax", "oe", "bj", "pem"]
@@ -42,14 +43,29 @@ def _shift(x: np.ndarray, k: int) -> np.ndarray:
     return out
 
 
-def _residual(m: IDPoly, y, u):
+def prediction_errors(m: IDPoly, y, u):
+    """Prediction errors of ``m`` on ``y, u`` from zero initial conditions, and the filtered signals.
+
+    Returns
+    -------
+    eps : ndarray, shape (N,)
+        ``D/C (A y - B/F u)``.
+    v : ndarray, shape (N,)
+        ``B/F u``.
+    w : ndarray, shape (N,)
+        ``A y - v``.
+    """
     v = lfilter(m.B, m.F, u)
     w = lfilter(m.A, [1.0], y) - v
     eps = lfilter(m.D, m.C, w)
     return eps, v, w
 
 
-def _jacobian(m: IDPoly, y, u, eps, v, w) -> np.ndarray:
+def prediction_error_jacobian(m: IDPoly, y, u, eps, v, w) -> np.ndarray:
+    """``d eps / d theta``, shape (N, d), columns in the order of ``m.parameters`` (module docstring).
+
+    ``eps, v, w`` are those of :func:`prediction_errors` at ``m``.
+    """
     N = y.size
     cols = []
     CF = np.convolve(m.C, m.F)
@@ -77,12 +93,12 @@ def _noise_stable(m: IDPoly) -> bool:
 
 def _lm(m: IDPoly, y, u, max_iter: int, tol: float):
     """Levenberg–Marquardt on the prediction error; returns model, J, eps, info."""
-    eps, v, w = _residual(m, y, u)
+    eps, v, w = prediction_errors(m, y, u)
     V = float(eps @ eps)
     mu = 1e-3
     it = 0
     for it in range(1, max_iter + 1):
-        J = _jacobian(m, y, u, eps, v, w)
+        J = prediction_error_jacobian(m, y, u, eps, v, w)
         JTJ = J.T @ J
         g = J.T @ eps
         diag = np.diag(JTJ).copy()
@@ -96,7 +112,7 @@ def _lm(m: IDPoly, y, u, max_iter: int, tol: float):
                 continue
             cand = m.with_parameters(m.parameters + step)
             if _noise_stable(cand):
-                e2, v2, w2 = _residual(cand, y, u)
+                e2, v2, w2 = prediction_errors(cand, y, u)
                 V2 = float(e2 @ e2)
                 if np.isfinite(V2) and V2 <= V:
                     improved = True
@@ -111,7 +127,7 @@ def _lm(m: IDPoly, y, u, max_iter: int, tol: float):
             break
         if rel < tol * 1e-3:
             break
-    J = _jacobian(m, y, u, eps, v, w)
+    J = prediction_error_jacobian(m, y, u, eps, v, w)
     return m, J, eps, dict(iterations=it, cost=V)
 
 
@@ -124,7 +140,7 @@ def _hannan_rissanen(y, u, na, nb, nc, nk, use_input=True):
         Phi, tgt, n0 = arx_regressors(y, u, n_hi, n_hi, 1)
     else:
         Phi, tgt, n0 = arx_regressors(y, u, n_hi, 0, 1)
-    th, *_ = _qr_lstsq(Phi, tgt)
+    th, *_ = qr_lstsq(Phi, tgt)
     e = np.zeros(N)
     e[n0:] = tgt - Phi @ th
     Phi2, tgt2, n1 = arx_regressors(y, u, na, nb, nk)
@@ -134,7 +150,7 @@ def _hannan_rissanen(y, u, na, nb, nc, nk, use_input=True):
         cols.append(E[n1:])
     X = np.column_stack(cols)
     skip = min(n0, X.shape[0] - X.shape[1] - 1) if nc else 0
-    th2, *_ = _qr_lstsq(X[skip:], tgt2[skip:])
+    th2, *_ = qr_lstsq(X[skip:], tgt2[skip:])
     A = np.r_[1.0, th2[:na]]
     B = np.zeros(nk + nb)
     B[nk:] = th2[na:na + nb]
@@ -142,14 +158,19 @@ def _hannan_rissanen(y, u, na, nb, nc, nk, use_input=True):
     return A, B, C
 
 
-def _steiglitz_mcbride(y, u, nb, nf, nk, iterations=8):
+def steiglitz_mcbride(y, u, nb, nf, nk, iterations=8):
+    """Output-error start ``(B, F)`` by Steiglitz–McBride iterations (``F`` reflected to be stable).
+
+    Each iteration filters ``y`` and ``u`` by ``1/F`` and solves the ARX problem
+    ``F y_f = B u_f`` by least squares; it stops when ``F`` no longer changes.
+    """
     F = np.ones(1)
     B = np.zeros(nk + nb)
     for _ in range(iterations):
         yf = lfilter([1.0], F, y)
         uf = lfilter([1.0], F, u)
         Phi, tgt, _ = arx_regressors(yf, uf, nf, nb, nk)
-        th, *_ = _qr_lstsq(Phi, tgt)
+        th, *_ = qr_lstsq(Phi, tgt)
         Fn = reflect_roots(np.r_[1.0, th[:nf]])
         B = np.zeros(nk + nb)
         B[nk:] = th[nf:]
@@ -192,7 +213,7 @@ class PEM:
         na, nb, nc, nd, nf, nk = self._orders()
         y, u = data.y, data.u
         if nf or nd:
-            B, F = _steiglitz_mcbride(y, u, nb, nf, nk) if nf else (None, np.ones(1))
+            B, F = steiglitz_mcbride(y, u, nb, nf, nk) if nf else (None, np.ones(1))
             if B is None:
                 _, B, _ = _hannan_rissanen(y, u, 0, nb, 0, nk)
             w = y - lfilter(B, F, u)

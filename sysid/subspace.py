@@ -288,9 +288,9 @@ class N4SID:
             B, D, x0, sim_rss = bdx
         model = IDSS(A, B, Cm, D, K, Ts=1.0)
         p = model.to_idpoly()
-        from .pem import _residual
+        from .pem import prediction_errors
         with np.errstate(all="ignore"):
-            eps = _residual(p, y, u)[0] if is_stable_poly(p.C) else np.full(1, np.inf)
+            eps = prediction_errors(p, y, u)[0] if is_stable_poly(p.C) else np.full(1, np.inf)
         loss = float(eps @ eps) / N if np.all(np.isfinite(eps)) else float("inf")
         degenerate = any("B = 0" in m or "non-finite" in m for m in problems(model, y, u, "model"))
         ny = float(np.linalg.norm(y - y.mean()))
@@ -408,13 +408,13 @@ def _input_matrices(A, C, K, y, u, feedthrough):
 
 def _pem_covariance(model: IDSS, y, u):
     """``(sigma^2 (J^T J)^-1, V/N)`` of the ARMAX-equivalent parameters at ``model`` (None if undefined)."""
-    from .pem import _jacobian, _residual
+    from .pem import prediction_error_jacobian, prediction_errors
     p = model.to_idpoly()
-    eps, v, w = _residual(p, y, u)
+    eps, v, w = prediction_errors(p, y, u)
     V = float(eps @ eps)
     if not np.isfinite(V):  # unstable predictor: no prediction-error covariance
         return None, float("nan")
-    J = _jacobian(p, y, u, eps, v, w)
+    J = prediction_error_jacobian(p, y, u, eps, v, w)
     try:
         cov = V / max(y.size - p.n_parameters, 1) * np.linalg.inv(J.T @ J)
     except np.linalg.LinAlgError:

@@ -233,12 +233,12 @@ class TFEst:
 
     def _scan_delay(self, data, n):
         """Delay (samples) of the discrete OE model [nb=np nf=np nk=1+d] with least simulation error."""
-        from .pem import _steiglitz_mcbride
+        from .pem import steiglitz_mcbride
         best, best_d = np.inf, 0
         dmax = check_order(self.max_delay_samples, "max_delay_samples")
         y = data.y[dmax:]
         for d in range(dmax + 1):
-            B, F = _steiglitz_mcbride(data.y, data.u, n, n, 1 + d, iterations=4)
+            B, F = steiglitz_mcbride(data.y, data.u, n, n, 1 + d, iterations=4)
             e = y - lfilter(B, F, data.u)[dmax:]
             cost = float(e @ e)
             if cost < best:
@@ -248,8 +248,8 @@ class TFEst:
     def _fit_delay(self, data, d):
         n, m, Ts = self.n_poles, self.n_zeros, data.Ts
         y, u = data.y, np.r_[np.zeros(d), data.u[:data.N - d]]
-        from .pem import _steiglitz_mcbride
-        _, F = _steiglitz_mcbride(y, u, n, n, 1)
+        from .pem import steiglitz_mcbride
+        _, F = steiglitz_mcbride(y, u, n, n, 1)
         zp = np.roots(F) if F.size > 1 else np.zeros(0)
         sp = np.log(np.clip(np.abs(zp), 1e-6, 0.999999)) / Ts + 1j * np.angle(zp) / Ts
         sp = np.where(np.abs(np.angle(zp)) > 3.1, np.log(np.clip(np.abs(zp), 1e-6, 0.9999)) / Ts, sp)
