@@ -7,6 +7,8 @@ from scipy.signal import savgol_filter
 
 from ..errors import PneusimError
 from ..recording import Recording
+from .rules import (FIRST_STATE_EVALUATIONS, FIRST_STATE_GRID_POINTS, FIRST_STATE_LOCAL_STARTS,
+                    FIRST_STATE_PRIOR_WIDTH, START_VELOCITY_SMOOTHING_S)
 from .shooting import ShootingProblem
 
 __all__ = ["initial_starts", "better_first_state"]
@@ -30,7 +32,7 @@ def initial_starts(pb: ShootingProblem, theta0, recording: Recording, stop: int,
     the carried state drifts off the samples (two paper-1 recordings without pressures went from noise
     to 1.34 and 1.90 times it)."""
     ts = recording.sample_time_s
-    width = max(5, int(round(0.05 / ts)) | 1)
+    width = max(5, int(round(START_VELOCITY_SMOOTHING_S / ts)) | 1)
     velocity = savgol_filter(recording.position_m[:stop], min(width, stop - (1 - stop % 2)), 2, deriv=1, delta=ts)
     params = pb.params_of(theta0)
     model = pb.model
@@ -120,15 +122,6 @@ def better_first_state(pb: ShootingProblem, theta, states) -> np.ndarray:
     return np.asarray(_best_start(pb, 0, [np.asarray(x, float) for x in states])[0], float).copy()
 
 
-#: interior pressures per chamber of the grid the first state's search starts from, and how many of the
-#: best grid points it refines by least squares (a stick-slipping start has several local minima)
-GRID_POINTS = 8
-LOCAL_STARTS = 4
-
-#: widths of the prior on the first state: velocity m/s, pressures Pa (broad; data dominate when they speak)
-_PRIOR_WIDTH = {"velocity_m_per_s": 0.02, "pressure_a_Pa": 1e5, "pressure_b_Pa": 1e5}
-
-
 def _hidden_state(pb: ShootingProblem, j: int, x0: np.ndarray, params: np.ndarray, grid: bool) -> np.ndarray:
     """The velocity and unmeasured chamber pressures at the start of segment ``j`` that best explain
     its samples: from ``x0`` (and, with ``grid``, a coarse grid of pressures), trust-region least
@@ -154,7 +147,7 @@ def _hidden_state(pb: ShootingProblem, j: int, x0: np.ndarray, params: np.ndarra
     x_lo[2:4], x_hi[2:4] = low, high
     z_lo, z_hi = x_lo[hidden] / pb.x_scale[hidden], x_hi[hidden] / pb.x_scale[hidden]
     z_prior = np.clip(x0[hidden] / pb.x_scale[hidden], z_lo, z_hi)
-    prior_width = np.array([_PRIOR_WIDTH[n] for n in names]) / pb.x_scale[hidden]
+    prior_width = np.array([FIRST_STATE_PRIOR_WIDTH[n] for n in names]) / pb.x_scale[hidden]
     n_res = (pb.stops[j] - pb.starts[j] + 1) * len(pb.data.signals) + len(hidden)
     cols = [pb.n_free + i for i in hidden]
 
@@ -176,11 +169,12 @@ def _hidden_state(pb: ShootingProblem, j: int, x0: np.ndarray, params: np.ndarra
 
     def refine(sim, z):
         fit = least_squares(lambda z: residuals(sim, z), np.clip(z, z_lo, z_hi),
-                            jac=lambda z: residuals(sim, z, True)[1], method="trf", bounds=(z_lo, z_hi), max_nfev=50)
+                            jac=lambda z: residuals(sim, z, True)[1], method="trf", bounds=(z_lo, z_hi),
+                            max_nfev=FIRST_STATE_EVALUATIONS)
         return fit.x, cost(sim, fit.x)
 
     candidates = [z_prior]
-    grid = np.linspace(low, high, GRID_POINTS + 2)[1:-1] if (grid and len(hidden) > 1) else []
+    grid = np.linspace(low, high, FIRST_STATE_GRID_POINTS + 2)[1:-1] if (grid and len(hidden) > 1) else []
     for pa in grid:
         for pb_ in (grid if len(hidden) > 2 else [None]):
             z = z_prior.copy()
@@ -191,7 +185,7 @@ def _hidden_state(pb: ShootingProblem, j: int, x0: np.ndarray, params: np.ndarra
     # the grid's points and the local refinements are independent: spread over the problem's simulators
     costs = pb.map_sims(cost, candidates)
     best_z, best_cost = candidates[int(np.argmin(costs))], min(costs)
-    for z, c in pb.map_sims(refine, [candidates[i] for i in np.argsort(costs)[:LOCAL_STARTS]]):
+    for z, c in pb.map_sims(refine, [candidates[i] for i in np.argsort(costs)[:FIRST_STATE_LOCAL_STARTS]]):
         if c < best_cost:
             best_z, best_cost = z, c
     x = x0.copy()

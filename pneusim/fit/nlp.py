@@ -29,12 +29,10 @@ import numpy as np
 from scipy import sparse
 
 from ..errors import SolverError
+from .rules import GN_DAMPING, IPOPT_OBJECTIVE_CHANGE
 from .shooting import ShootingProblem
 
 __all__ = ["solve_ipopt", "IpoptResult", "damped_gauss_newton"]
-
-#: relative and absolute damping added to the Gauss-Newton matrix
-GN_DAMPING = (1e-3, 1e-9)
 
 
 @dataclass
@@ -51,7 +49,7 @@ class IpoptResult:
 
 def damped_gauss_newton(gn):
     """The Gauss-Newton matrix ``gn`` (sparse, ``J^T J``) with :data:`GN_DAMPING` added to its diagonal:
-    ``gn + diag(1e-3 diag(gn) + 1e-9)`` (sparse), what this module's IPOPT and :func:`.stages.settled` step with."""
+    ``gn + diag(1e-3 diag(gn) + 1e-9)`` (sparse), what this module's IPOPT and :func:`.constrained.settle_gauss_newton` step with."""
     return (gn + sparse.diags(GN_DAMPING[0] * gn.diagonal() + GN_DAMPING[1])).tocsr()
 
 
@@ -199,7 +197,7 @@ class _Oracle(ca.Callback):
 
 
 def solve_ipopt(problem: ShootingProblem, v0: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-                max_iter: int = 60, defect_tol: float = 2e-5, objective_change_tol: float = 1e-3,
+                max_iter: int = 60, defect_tol: float = 2e-5, objective_change_tol: float = IPOPT_OBJECTIVE_CHANGE,
                 print_level: int = 0, penalty: float | None = None,
                 give_up_climb: tuple[float, int] | None = None,
                 give_up_stall: tuple[int, float] | None = None) -> IpoptResult:

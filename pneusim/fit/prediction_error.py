@@ -37,25 +37,12 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .parameters import clip_inside
+from .rules import (HELD_BROAD, HELD_UNTIL, PREDICTION_ERROR_EVALUATIONS, PREDICTION_ERROR_TOLERANCE, PRESSURE_FACTOR,
+                    PROCESS_SCHEDULE)
 from .shooting import ShootingProblem
 from .tracking import process_std, run_filter
 
 __all__ = ["prediction_error_fit", "PROCESS_SCHEDULE", "PRESSURE_FACTOR"]
-
-#: the process noise std per sample (fraction of each state's typical magnitude, see
-#: :func:`.tracking.process_std`) of each stage in turn: broad first, then sharp
-PROCESS_SCHEDULE = (1e-2, 3e-3, 1e-3, 3e-4)
-#: the process noise of chamber pressures the recording does not measure, relative to the other states'
-#: (see the module docstring)
-PRESSURE_FACTOR = 0.01
-#: parameters held at their start in the stages whose process noise is above :data:`HELD_UNTIL`: the friction
-#: smoothing velocity damps the model's stick-slip, and a broad filter trades it for mistimed slips (the
-#: robustness set's ``s1006``, freed in every stage: innovations 2.15 times their noise level, the smoothing
-#: at 10 times the truth; held: 1.12, every parameter within 6 %)
-HELD_BROAD = ("friction_smoothing_velocity_m_per_s",)
-HELD_UNTIL = 1e-3
-#: filter passes per stage at most
-MAX_EVALUATIONS = 40
 
 
 def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.ndarray, lower: np.ndarray,
@@ -112,8 +99,8 @@ def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.nd
 
         fit = least_squares(lambda u: evaluate(full(u))["innovations"], w[moving],
                             jac=lambda u: evaluate(full(u))["jacobian"][:, moving],
-                            bounds=(lo[moving], hi[moving]), method="trf", x_scale=1.0, max_nfev=MAX_EVALUATIONS,
-                            xtol=1e-4, ftol=1e-4)
+                            bounds=(lo[moving], hi[moving]), method="trf", x_scale=1.0, max_nfev=PREDICTION_ERROR_EVALUATIONS,
+                            xtol=PREDICTION_ERROR_TOLERANCE, ftol=PREDICTION_ERROR_TOLERANCE)
         w = full(fit.x)
         rms = float(np.sqrt(np.sum(fit.fun ** 2) / n_seen)) if np.all(np.isfinite(fit.fun)) else float("inf")
         stages.append({"process_std": fraction, "rms_innovations": rms, "evaluations": int(fit.nfev),

@@ -13,7 +13,9 @@ from ..errors import FitError
 from ..model import Effect
 from ..recording import Recording
 from ..rig import Rig
-from .setup import DEFAULT_VALIDATION_FRACTION, FitSetup, _name
+from .rules import (DEFAULT_VALIDATION_FRACTION, MIN_ESTIMATION_SAMPLES, PREFIT_SAMPLES, SEGMENT_SAMPLES,
+                    TRUST_REGION_EVALUATIONS)
+from .setup import FitSetup, _name
 from .initial import initial_starts
 from .stages import prefit
 from .threads import one_blas_thread
@@ -49,9 +51,9 @@ class PrefitResult:
 
 @one_blas_thread
 def prefit_recording(recording: Recording, rig: Rig | str | None = None, effects: Sequence[Effect] = (),
-                     free: Sequence[str] | None = None, *, samples: int = 2000, start_values: dict | None = None,
-                     validation_fraction: float | None = None, segment_samples: int = 50, rtol: float = 1e-6,
-                     threads: int = 2, second_route: bool | None = None, max_evaluations: int = 80,
+                     free: Sequence[str] | None = None, *, samples: int = PREFIT_SAMPLES, start_values: dict | None = None,
+                     validation_fraction: float | None = None, segment_samples: int = SEGMENT_SAMPLES, rtol: float = 1e-6,
+                     threads: int = 2, second_route: bool | None = None, max_evaluations: int = TRUST_REGION_EVALUATIONS,
                      start: int = 0) -> PrefitResult:
     """The first stage of :func:`fit_recording` alone: the pre-fit from the rig's values (or
     ``start_values``) on the first ``samples`` samples of the estimation part, with ``effects`` on.
@@ -68,8 +70,9 @@ def prefit_recording(recording: Recording, rig: Rig | str | None = None, effects
         n = recording.n_samples
         split = int(round(n * (1.0 - (DEFAULT_VALIDATION_FRACTION if validation_fraction is None
                                       else validation_fraction))))
-        if not 0 < start < split - 100:
-            raise FitError(f"{_name(recording)}: a pre-fit window from sample {start} leaves fewer than 100 samples "
+        if not 0 < start < split - MIN_ESTIMATION_SAMPLES:
+            raise FitError(f"{_name(recording)}: a pre-fit window from sample {start} leaves fewer than "
+                           f"{MIN_ESTIMATION_SAMPLES} samples "
                            f"before the validation part (from sample {split})")
         recording = recording.slice(recording.time_s[start], None)
         validation_fraction = (n - split) / (n - start)

@@ -1,4 +1,4 @@
-"""The fit's rescue routes, tried where the solver stages (:mod:`.stages`) end above noise: the pre-fit
+"""The fit's rescue routes, tried where the trust-region stages (:mod:`.stages`) end above noise: the pre-fit
 through short segments (both pressures recorded), segment starts tracked by a Kalman filter, and the
 prediction-error fit followed by those tracked starts.  Each is kept only where it ends lower on the
 problem it rescues."""
@@ -11,22 +11,31 @@ import numpy as np
 
 from .initial import initial_starts
 from .prediction_error import prediction_error_fit
-from .result import ABOVE_NOISE_WARNING
+from .rules import ABOVE_NOISE_WARNING, CLEARLY_BETTER, FIT_DEFECT_WEIGHTS, PLAUSIBLE_INNOVATIONS, TRACKED_ROUNDS
 from .shooting import ShootingProblem
-from .stages import CLEARLY_BETTER, FIT_DEFECT_WEIGHTS, continuation, prefit
+from .stages import prefit
 from .tracking import filtered_states
+from .trust_region import continuation
 
 __all__ = ["short_segments_route", "tracked_route", "prediction_error_route", "TRACKED_ROUNDS",
            "PLAUSIBLE_INNOVATIONS"]
 
 
 def short_segments_route(short, pb: ShootingProblem, lower, upper, theta0, v, rms, recording):
-    """The pre-fit's route through :data:`.stages.SHORT_SEGMENTS`-sample segments, for a recording with both
+    """The pre-fit's route through :data:`~.rules.SHORT_SEGMENTS`-sample segments, for a recording with both
     pressures whose pre-fit (``v``, normalised residual ``rms`` on problem ``pb``) ended above noise but not so
-    far that the model lacks physics: :func:`.stages.prefit` on ``short = (problem, lower, upper)`` (the same window
-    in short segments) from the same start ``theta0``, then :func:`.stages.prefit` on ``pb`` from its parameters
-    with each segment starting from the measured or the carried state (:func:`.initial.initial_starts`'
-    ``choose_starts``).  Kept when that ends :data:`.stages.CLEARLY_BETTER` times below ``rms`` on the same problem.
+    far that the model lacks physics: :func:`.stages.prefit` on ``short = (problem, lower, upper)`` (the same
+    window in short segments) from the same start ``theta0``, then :func:`.stages.prefit` on ``pb`` from its
+    parameters with each segment starting from the measured or the carried state
+    (:func:`.initial.initial_starts`' ``choose_starts``).  Kept when that ends :data:`~.rules.CLEARLY_BETTER`
+    times below ``rms`` on the same problem.
+
+    Why: a piston that stick-slips from sample to sample through every slow motion makes a 50-sample
+    segment's residual depend on the phase of that oscillation; with the pressures measured only the
+    velocity of a short segment's start is unknown, and short segments pin the valve and friction
+    parameters.  Judged on the pre-fit's own problem, not on the short segments' residual: short segments
+    with free starts also absorb a missing effect, and the pre-fit's residual is what says that the model
+    lacks physics (``docs/decisions/0006``).
 
     Returns ``(v, rms, info)``: the kept point and residual on ``pb``, and ``info`` with the short pre-fit's
     residual, the route's residual on ``pb``, whether it was kept and its seconds.
@@ -47,23 +56,19 @@ def short_segments_route(short, pb: ShootingProblem, lower, upper, theta0, v, rm
     return (v_route, rms_route, info) if kept else (v, rms, info)
 
 
-#: rounds of :func:`tracked_route` at most
-TRACKED_ROUNDS = 2
-
-
 def tracked_route(pb: ShootingProblem, v, lower, upper, rms: float, finish):
     """From a fit ``v`` that ended above noise (normalised residual ``rms`` on ``pb``): every segment
     started from the state an extended Kalman filter tracks at the fit's parameters
-    (:func:`.tracking.filtered_states`), then the :func:`.stages.continuation` through :data:`.stages.FIT_DEFECT_WEIGHTS`;
-    again from there while it lowers the residual, :data:`TRACKED_ROUNDS` rounds at most; then ``finish``
-    (``v -> (IPOPT result, normalised rms)``: :func:`.stages.polish`) on the best point when a round lowered it.
+    (:func:`.tracking.filtered_states`), then the :func:`.trust_region.continuation` through
+    :data:`~.rules.FIT_DEFECT_WEIGHTS`; again from there while it lowers the residual,
+    :data:`~.rules.TRACKED_ROUNDS` rounds at most; then ``finish`` (``v -> (IPOPT result, normalised rms)``:
+    :func:`.constrained.solve_ipopt_exact`) on the best point when a round lowered it.
 
-    Why: on a recording whose piston stick-slips from sample to sample (paper 2, open loop) a segment
-    started from the chained simulation leaves the recorded slip pattern within seconds even at the
-    true parameters, and the trust region then settles where the parameters make up for the wrong
-    slips (the robustness set's ``s1027``: 1.63 times noise, the Stribeck velocity at 0.54 and the
-    viscous friction at 0.64 of the truth).  From the filtered starts the segments follow their own
-    samples, and the parameters what all of them say together.
+    Why: on a recording whose piston stick-slips from sample to sample a segment started from the chained
+    simulation leaves the recorded slip pattern within seconds even at the true parameters, and the trust
+    region then settles where the parameters make up for the wrong slips.  From the filtered starts the
+    segments follow their own samples, and the parameters what all of them say together
+    (``docs/decisions/0017``).
 
     Returns ``(result, info)``: ``finish``'s result (None when no round lowered the residual), and
     ``info`` with each round's residual, evaluations and seconds, and the finished residual.
@@ -88,11 +93,6 @@ def tracked_route(pb: ShootingProblem, v, lower, upper, rms: float, finish):
     return done, info
 
 
-#: the prediction-error route goes on to the shooting problem only where the filter's whitened innovations
-#: end at most this many times their noise-level rms of 1 (see :func:`prediction_error_route`)
-PLAUSIBLE_INNOVATIONS = 2.0
-
-
 def prediction_error_route(window: ShootingProblem, pb: ShootingProblem, lower, upper, theta0, x_first,
                            rms: float, finish):
     """From the start ``theta0`` (scaled free parameters; ``x_first`` the first state, SI): the prediction-error
@@ -104,10 +104,10 @@ def prediction_error_route(window: ShootingProblem, pb: ShootingProblem, lower, 
     every mistimed slip and the pre-fit from a start tens of percent off stops in a wrong basin; the filter's
     innovations are smooth in the parameters (see :mod:`.prediction_error`).  The shooting problem still
     decides: the route's fit is kept only where IPOPT's objective is lower than the best fit's.  Given up
-    where the filter's innovations end a stage more than :data:`PLAUSIBLE_INNOVATIONS` times above their
-    noise level: a filter that cannot predict the recording one sample ahead says the model lacks physics
-    (practice2's nominal fits of recordings with an effect left out: 4.8-17, 8.6-164; the robustness set's
-    chaotic recordings the model explains: 0.86-1.12 at the last stage).
+    where the filter's innovations end a stage more than :data:`~.rules.PLAUSIBLE_INNOVATIONS` times above
+    their noise level: a filter that cannot predict the recording one sample ahead says the model lacks
+    physics, where it predicts a chaotic recording the model explains near its noise level
+    (``docs/decisions/0018``).
 
     Returns ``(result, info)``: ``finish``'s result (None where the route stopped or no round lowered the
     residual), and ``info`` with the prediction-error fit's stages, its parameters, the tracked route's

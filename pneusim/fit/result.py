@@ -12,26 +12,10 @@ import numpy as np
 from ..model import ActuatorModel, make_effect
 from ..recording import Recording
 from ..rig import Rig
+from .rules import (ABOVE_NOISE_WARNING, CORRELATION_WARNING, FAR_ABOVE_NOISE, OPEN_DEFECT_WARNING,
+                    RELATIVE_STD_WARNING)
 
-__all__ = ["FitResult", "ParameterEstimate"]
-
-#: a parameter whose standard error exceeds this fraction of its value is "poorly determined"
-RELATIVE_STD_WARNING = 0.5
-#: correlations beyond this make two parameters indistinguishable from the recording
-CORRELATION_WARNING = 0.99
-#: a fit whose residual rms exceeds this multiple of the sensor noise (for any measured signal) has not
-#: reached the noise level: ``converged_to_noise`` is False, ``solver["success"]`` is False and a warning
-#: says so.  Why 1.1: with white noise the rms of N >= 1000 residuals scatters by 1/sqrt(2N) < 2.3 %
-#: around the true noise std, and the noise std itself is known to a few percent (the rig file, or the
-#: robust estimate from second differences); 10 % above it is beyond both, while a systematic misfit
-#: whose power is a fifth of the noise's already crosses it.
-ABOVE_NOISE_WARNING = 1.1
-#: far above noise: the model misses what the recording shows (``pneusim fit`` exits with code 3)
-FAR_ABOVE_NOISE = 1.5
-#: a continuity defect left open above this (state-scaled: 0.3 mm of a 0.3 m stroke, 1 mm/s, 100 Pa) means
-#: the fitted trajectory jumps between shooting segments (IPOPT's penalty form ended there): warned, since
-#: the residual is then lower than any continuous simulation of the model gives
-OPEN_DEFECT_WARNING = 1e-3
+__all__ = ["FitResult", "ParameterEstimate", "ABOVE_NOISE_WARNING", "FAR_ABOVE_NOISE"]
 
 
 @dataclass

@@ -12,6 +12,9 @@ from ..errors import FitError
 from ..model import ActuatorModel
 from ..recording import Recording
 from ..rig import Rig, load_rig
+from .rules import (DEFAULT_VALIDATION_FRACTION, EXCITATION_NOISE_MULTIPLE, INFORMATIVE_WINDOW, MAX_VALIDATION_FRACTION,
+                    MIN_ESTIMATION_SAMPLES, MIN_SEGMENT_SAMPLES, MIN_VALIDATION_SAMPLES, POSITION_NOISE_FLOOR,
+                    PRESSURE_NOISE_FLOOR_PA)
 from .parameters import DEFAULT_FREE, EFFECT_FREE, SEARCHED, check_free, parameter_bounds, parameter_scale
 from .shooting import FitData, ShootingProblem
 from .warm_start import check_warm_start, warm_parameters
@@ -29,13 +32,6 @@ def noise_std_estimate(values: np.ndarray) -> float:
     if d2.size < 10:
         return 0.0
     return float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / np.sqrt(6.0))
-
-
-#: final fraction of a recording kept for validation unless told otherwise
-DEFAULT_VALIDATION_FRACTION = 0.3
-#: the pre-fit's window moves from the recording's start where the piston moves over less than this fraction of
-#: the estimation part's position range there (:meth:`FitSetup.prefit_start`)
-INFORMATIVE_WINDOW = 0.1
 
 
 class FitSetup:
@@ -58,8 +54,8 @@ class FitSetup:
                            "few fixed delays")
         if validation_fraction is None:
             validation_fraction = DEFAULT_VALIDATION_FRACTION
-        if not 0.0 < validation_fraction <= 0.9:
-            raise FitError(f"validation_fraction must be in (0, 0.9], got {validation_fraction}")
+        if not 0.0 < validation_fraction <= MAX_VALIDATION_FRACTION:
+            raise FitError(f"validation_fraction must be in (0, {MAX_VALIDATION_FRACTION}], got {validation_fraction}")
         p_nominal = model.param_vector(rig)
         p_start = p_nominal.copy()
         if warm_start is not None:
@@ -78,13 +74,14 @@ class FitSetup:
         self.signals, self.sigma = _signals(recording, rig, model)
         n = recording.n_samples
         self.n_est = n_est = int(round(n * (1.0 - validation_fraction)))
-        if n_est < 100 or n - n_est < 20:
+        if n_est < MIN_ESTIMATION_SAMPLES or n - n_est < MIN_VALIDATION_SAMPLES:
             raise FitError(f"{_name(recording)}: {n} samples are too few to fit on {1 - validation_fraction:.0%} and "
-                           "validate on the rest (at least 100 estimation and 20 validation samples)")
+                           f"validate on the rest (at least {MIN_ESTIMATION_SAMPLES} estimation and "
+                           f"{MIN_VALIDATION_SAMPLES} validation samples)")
         _check_excitation(recording, rig, n_est, self.sigma["position_m"])
         if warm_start is not None:
             check_warm_start(warm_start, recording, n_est)
-        self.seg = max(10, int(segment_samples))
+        self.seg = max(MIN_SEGMENT_SAMPLES, int(segment_samples))
 
     def window(self, stop: int, start: int = 0) -> FitData:
         """What the fit sees of samples ``start`` to ``stop - 1`` (the noise levels are the whole recording's)."""
@@ -179,7 +176,7 @@ def _signals(recording: Recording, rig: Rig, model: ActuatorModel):
     for name, values in signals.items():
         # the rig file's sensor noise when it states one, else an estimate from the data
         from_rig = float(rig.params.get("position_noise_std_m" if name == "position_m" else "pressure_noise_std_Pa", 0.0))
-        floor = rig.stroke_m * 1e-5 if name == "position_m" else 20.0
+        floor = rig.stroke_m * POSITION_NOISE_FLOOR if name == "position_m" else PRESSURE_NOISE_FLOOR_PA
         sigma[name] = max(from_rig if from_rig > 0 else noise_std_estimate(values), floor)
     return signals, sigma
 
@@ -187,9 +184,10 @@ def _signals(recording: Recording, rig: Rig, model: ActuatorModel):
 def _check_excitation(recording: Recording, rig: Rig, n_est: int, sigma_position: float) -> None:
     pos = recording.position_m[:n_est]
     span = float(np.nanmax(pos) - np.nanmin(pos))
-    if span < 50 * sigma_position:
+    if span < EXCITATION_NOISE_MULTIPLE * sigma_position:
         raise FitError(f"{_name(recording)}: the piston moves only {span * 1e3:.3f} mm in the estimation part "
-                       f"({50 * sigma_position * 1e3:.3f} mm needed, 50 times the sensor noise); such a recording "
+                       f"({EXCITATION_NOISE_MULTIPLE * sigma_position * 1e3:.3f} mm needed, {EXCITATION_NOISE_MULTIPLE} "
+                       "times the sensor noise); such a recording "
                        "does not excite the friction, mass and valve parameters")
     cmd = recording.valve_cmd_V[:n_est]
     if np.ptp(cmd) == 0.0:

@@ -29,20 +29,10 @@ from scipy.linalg import LinAlgWarning
 from ..errors import PneusimError
 from ..solver.backends import state_scales
 from ..solver.sensitivity import command_schedule
+from .rules import FIRST_STATE_STD, PROCESS_STD
 from .shooting import ShootingProblem, expected_position_reading
 
 __all__ = ["filtered_states", "run_filter", "process_std", "first_state_std", "PROCESS_STD"]
-
-#: process noise std per sample, as a fraction of each state's typical magnitude
-#: (:func:`~pneusim.solver.backends.state_scales`: 1 m/s, 1 bar, ...); the position's is 1e-3 of that,
-#: as the model integrates it from the velocity.  Why so small: near the truth the model is right and
-#: only its chaotic sensitivity needs the correction.  The window's residual from the filtered starts at
-#: the true parameters, for 3e-5, 1e-4, 3e-4, 1e-3, 1e-2: ``s1007`` (no pressures, chained starts 8.29)
-#: 0.87, 0.88, 0.90, 0.98, 1.88; ``s1006`` (pressures recorded, chained 4.28) 2.86, 2.15, 1.39, 1.38.
-PROCESS_STD = 3e-4
-
-#: prior std of the first state: velocity m/s, pressures Pa; other states 1 % of their typical magnitude
-_FIRST_STD = {"velocity_m_per_s": 0.02, "pressure_a_Pa": 2e4, "pressure_b_Pa": 2e4}
 
 
 def filtered_states(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray) -> np.ndarray:
@@ -74,9 +64,9 @@ def process_std(pb: ShootingProblem, fraction: float = PROCESS_STD,
 
 
 def first_state_std(pb: ShootingProblem) -> np.ndarray:
-    """Prior std of the first state (SI): :data:`_FIRST_STD`, else 1 % of the state's typical magnitude."""
+    """Prior std of the first state (SI): :data:`.rules.FIRST_STATE_STD`, else 1 % of the state's typical magnitude."""
     scales = state_scales(pb.model, pb.stroke_m)
-    return np.array([_FIRST_STD.get(name, 0.01 * s) for name, s in zip(pb.model.state_names, scales)])
+    return np.array([FIRST_STATE_STD.get(name, 0.01 * s) for name, s in zip(pb.model.state_names, scales)])
 
 
 def run_filter(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray, process: np.ndarray,

@@ -155,36 +155,42 @@ def test_stall_watch_stops_only_a_run_that_approaches_neither_goal():
     assert not any(stops(creeping, stuck, stall=None))               # near noise: the rule is off
 
 
-def test_a_constrained_run_given_up_falls_back_to_the_penalty_and_still_recovers(monkeypatch):
-    import pneusim.fit.fitter as fitter
-    import pneusim.fit.stages as stages
+def _never_settled(*args):
+    """A stand-in for Gauss-Newton settling that never settles: IPOPT finishes every fit."""
+    return None
+
+
+def test_a_constrained_run_given_up_falls_back_to_the_penalty_and_still_recovers():
+    from functools import partial
+
+    from pneusim.fit import FitStages, PhysicalFit
+    from pneusim.fit.constrained import solve_ipopt_exact
 
     rig, truth, rec = _recording("paper2-enfield", "closed", True, seed=5, noise_scale=1.0, duration=20.0)
-    # give the constrained run up at its first iterate: the answer must then come from the penalty form
-    monkeypatch.setattr(stages, "GIVE_UP_CLIMB", (0.0, 1))
-    monkeypatch.setattr(fitter, "settled", lambda *args: None)   # IPOPT even where Gauss-Newton would settle
-    result = fit_recording(rec, rig, quiet=True)
+    # give the constrained run up at its first iterate: the answer must then come from the penalty form;
+    # IPOPT even where Gauss-Newton would settle
+    stages = FitStages(settle=_never_settled, finish=partial(solve_ipopt_exact, give_up_climb=(0.0, 1)))
+    result = PhysicalFit(rig, quiet=True, stages=stages).fit(rec)
     assert "User_Requested_Stop" in result.solver["formulation"]
     assert result.converged_to_noise
     for key, p in result.parameters.items():
         assert abs(p.estimate - truth[key]) < 3 * p.std + 0.01 * abs(truth[key]), (key, p.estimate, truth[key])
 
 
-def test_gauss_newton_settles_a_fit_at_noise_where_ipopt_would_end(monkeypatch):
+def test_gauss_newton_settles_a_fit_at_noise_where_ipopt_would_end():
     """Where the full fit's trust region ends at noise, Gauss-Newton steps on the constrained problem
     settle it (IPOPT not run); the same fit finished by IPOPT instead ends within a fifth of a standard
     error of it in every parameter (the trust region's own point is 0.36 of one away on the benchmark's
     recording), and both hold the truth within 3 sigma."""
-    import pneusim.fit.fitter as fitter
-    import pneusim.fit.stages as stages
+    from pneusim.fit import FitStages, PhysicalFit
+    from pneusim.fit.rules import SETTLED_STEPS
 
     rig, truth, rec = _recording("paper2-enfield", "closed", True, seed=5, noise_scale=1.0, duration=20.0)
     settled = fit_recording(rec, rig, quiet=True)
     assert settled.solver["status"] == "Gauss_Newton_Settled"
-    assert 1 <= settled.solver["iterations"] <= stages.SETTLED_STEPS and settled.solver["ipopt_seconds"] == 0.0
+    assert 1 <= settled.solver["iterations"] <= SETTLED_STEPS and settled.solver["ipopt_seconds"] == 0.0
     assert settled.converged_to_noise and settled.solver["max_defect"] <= 10 * 20 * 1e-6
-    monkeypatch.setattr(fitter, "settled", lambda *args: None)
-    polished = fit_recording(rec, rig, quiet=True)
+    polished = PhysicalFit(rig, quiet=True, stages=FitStages(settle=_never_settled)).fit(rec)
     assert polished.solver["status"] != "Gauss_Newton_Settled" and polished.solver["iterations"] > 0
     for key, p in settled.parameters.items():
         q = polished.parameters[key]
@@ -194,23 +200,24 @@ def test_gauss_newton_settles_a_fit_at_noise_where_ipopt_would_end(monkeypatch):
 
 
 def test_not_settled_above_noise():
-    """Above the noise :func:`settled` leaves the fit to IPOPT without touching the problem."""
-    from pneusim.fit.result import ABOVE_NOISE_WARNING
-    from pneusim.fit.stages import settled
+    """Above the noise :func:`settle_gauss_newton` leaves the fit to IPOPT without touching the problem."""
+    from pneusim.fit.constrained import settle_gauss_newton
+    from pneusim.fit.rules import ABOVE_NOISE_WARNING
 
     class Untouchable:
         def __getattr__(self, name):
-            raise AssertionError(f"settled used the problem's {name} above noise")
+            raise AssertionError(f"settle_gauss_newton used the problem's {name} above noise")
 
     for rms in (ABOVE_NOISE_WARNING * 1.01, float("nan"), float("inf")):
-        assert settled(Untouchable(), np.zeros(3), rms, 1e-6, None, None) is None
+        assert settle_gauss_newton(Untouchable(), np.zeros(3), rms, 1e-6, None, None) is None
 
 
-def test_second_route_only_when_ipopt_from_the_direct_route_stays_above_noise(monkeypatch):
+def test_second_route_only_when_ipopt_from_the_direct_route_stays_above_noise():
     """The full fit's continuation route runs only when IPOPT from the direct route's point does not
     reach the noise level and ends within MODEL_SHORT times it (further above, the model lacks physics);
     when it runs and is not clearly better, the finished direct route is kept."""
-    import pneusim.fit.stages as stages
+    from pneusim.fit.rules import MODEL_SHORT
+    from pneusim.fit.stages import full_fit
 
     calls = []
 
@@ -223,20 +230,19 @@ def test_second_route_only_when_ipopt_from_the_direct_route_stays_above_noise(mo
         return np.array([2.0]), 1.73, {"status": "step tolerance", "evaluations": 45, "jacobians": 45,
                                        "seconds": 3.0}
 
-    monkeypatch.setattr(stages, "trust_region", fake_trust_region)
-    monkeypatch.setattr(stages, "continuation", fake_continuation)
-    for finished_rms, continued in ((0.999, False), (1.6, True), (stages.MODEL_SHORT * 0.99, True),
-                                    (stages.MODEL_SHORT * 1.01, False), (float("inf"), True)):
+    solvers = {"trust_region": fake_trust_region, "continuation": fake_continuation}
+    for finished_rms, continued in ((0.999, False), (1.6, True), (MODEL_SHORT * 0.99, True),
+                                    (MODEL_SHORT * 1.01, False), (float("inf"), True)):
         calls.clear()
-        v, rms, info = stages.full_fit(None, np.zeros(1), None, None, prefit_rms=0.99,
-                                       finish=lambda v: ("ipopt result", finished_rms))
+        v, rms, info = full_fit(None, np.zeros(1), None, None, prefit_rms=0.99,
+                                finish=lambda v: ("ipopt result", finished_rms), **solvers)
         assert [c[0] for c in calls] == ["trust region"] + (["continuation"] if continued else [])
         assert info["route"] == "direct" and info["finished"] == ("ipopt result", finished_rms)
         assert info["routes"][0]["finished_rms_normalised"] == finished_rms
         assert info["evaluations"] == 17 + (45 if continued else 0)
-        assert ("second_route_skipped" in info["routes"][0]) == (finished_rms > stages.MODEL_SHORT
+        assert ("second_route_skipped" in info["routes"][0]) == (finished_rms > MODEL_SHORT
                                                                  and np.isfinite(finished_rms))
     # without a finish (the pre-fit) the continuation follows a direct route above noise, as before
     calls.clear()
-    stages.full_fit(None, np.zeros(1), None, None, prefit_rms=0.99)
+    full_fit(None, np.zeros(1), None, None, prefit_rms=0.99, **solvers)
     assert [c[0] for c in calls] == ["trust region", "continuation"]

@@ -37,11 +37,11 @@ import pytest
 from pneusim.cli import main
 from pneusim.experiment import standard_experiment
 from pneusim.fit import fit_recording
-from pneusim.fit.setup import INFORMATIVE_WINDOW, FitSetup
+from pneusim.fit.setup import FitSetup
 from pneusim.fit.initial import initial_starts
 from pneusim.fit.prediction_error import prediction_error_fit
 from pneusim.fit.tracking import filtered_states, process_std, run_filter
-from pneusim.fit.result import ABOVE_NOISE_WARNING, FAR_ABOVE_NOISE
+from pneusim.fit.rules import ABOVE_NOISE_WARNING, FAR_ABOVE_NOISE, INFORMATIVE_WINDOW
 from pneusim.fit.robustness import fit_free, hardest_cases, make_case, robustness_cases, score
 from pneusim.model import make_effect
 from pneusim.recording import write_recording
@@ -235,9 +235,10 @@ def test_prefit_starts_afresh_where_its_trust_region_stalls_above_noise():
     """Paper 2, closed-loop pulses without pressures (``s1033`` of the robustness set): the pre-fit's trust
     region stops on SciPy's step tolerance at 2.2 times noise with the conductance 13 % off (a region
     shrunk in the penalty's valley; that tolerance is relative to the norm of all 167 variables).  The
-    pre-fit starts a fresh region from there once (:data:`pneusim.fit.stages.PREFIT_RESTARTS`) and reaches
+    pre-fit starts a fresh region from there once (:data:`pneusim.fit.rules.PREFIT_RESTARTS`) and reaches
     the noise with all seven parameters within 1 % of the truth (measured: 0.986 times noise, 0.2 %)."""
-    from pneusim.fit import stages
+    from pneusim.fit.stages import prefit
+    from pneusim.fit.trust_region import trust_region
 
     spec = next(s for s in robustness_cases(48) if s.seed == 1033)
     assert (spec.rig_name, spec.kind, spec.loop, spec.pressures) == ("paper2-enfield", "pulses", "closed", False)
@@ -253,10 +254,10 @@ def test_prefit_starts_afresh_where_its_trust_region_stalls_above_noise():
             p = pb.params_of(pb.split(v)[0])
             return max(abs(p[i] / truth[name] - 1.0) for name, i in defaults)
 
-        v_once, rms_once, once = stages.trust_region(pb, v0, lo, hi)
+        v_once, rms_once, once = trust_region(pb, v0, lo, hi)
         assert once["status"] == "step tolerance" and once["restarts"] == 0
         assert rms_once > ABOVE_NOISE_WARNING and largest_error(v_once) > 0.05
-        v, rms, info = stages.prefit(pb, v0, lo, hi)
+        v, rms, info = prefit(pb, v0, lo, hi)
         assert info["restarts"] >= 1, info
         assert rms <= ABOVE_NOISE_WARNING and largest_error(v) < 0.01
     finally:

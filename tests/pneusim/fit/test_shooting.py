@@ -12,7 +12,7 @@ from scipy import sparse
 from pneusim.experiment import standard_experiment
 from pneusim.fit import DEFAULT_FREE
 from pneusim.fit.shooting import FitData, ShootingProblem, _csr_pattern, expected_position_reading
-from pneusim.fit.stages import _StackedJacobian
+from pneusim.fit.trust_region import _StackedJacobian
 from pneusim.model import ActuatorModel
 from pneusim.simulate import simulate
 
@@ -131,7 +131,7 @@ def test_screening_cost_is_the_trust_regions_objective(window):
     steps differently from the state's own memory, so a cost of the same point without sensitivities can
     differ, by 12 % on a chaotic stick-slip window), and the steps never end above their start."""
     from pneusim.diagnosis.candidates import DEFECT_WEIGHT, _total_cost
-    from pneusim.fit.stages import trust_region
+    from pneusim.fit.trust_region import trust_region
 
     pb, _, v, _ = window
     lower = np.full(v.size, -np.inf)

@@ -1,0 +1,445 @@
+"""The physical fit as an estimator with swappable stages: :class:`PhysicalFit` and :class:`FitStages`.
+
+``PhysicalFit(rig, effects, free, ...).fit(recording)`` runs, in order:
+
+1. **checks and split** — the recording matches the rig (sample time, stroke, pressure range) and moves
+   enough to say anything about the free parameters; the first ``1 - validation_fraction`` of it
+   estimates, the rest validates and is never seen by the optimiser (:class:`.setup.FitSetup`);
+2. **pre-fit from each start** — the multiple-shooting problem (:mod:`.shooting`) on a short window (the
+   estimation part's first samples, or where the piston moves when it rests through those:
+   :meth:`.setup.FitSetup.prefit_start`), from the rig file's values, by trust-region least squares with the
+   continuity between segments as a weighted residual (:func:`.stages.prefit`); where that ends above noise
+   and both pressures are recorded, also through short segments (:func:`.rescue_routes.short_segments_route`);
+3. **whole fit** — the whole estimation part from the pre-fit: trust region (:func:`.stages.full_fit`), then
+   the exact constrained problem: by Gauss-Newton steps where the trust region ended at noise
+   (:func:`.constrained.settle_gauss_newton`), else (or where those do not settle) by IPOPT
+   (:func:`.constrained.solve_ipopt_exact`).  A fit that ends well above its pre-fit's residual, or above
+   noise after a pre-fit above noise, is retried from the next start (:data:`.rules.START_FACTORS`; the best
+   kept; a start whose pre-fit ends where an earlier one's did is not fitted again), unless the pre-fit
+   itself ends more than :data:`.rules.MODEL_SHORT` times above noise (the model lacks physics there);
+4. **rescue routes** — where the best fit still ends above noise, but neither it nor every pre-fit more than
+   :data:`.rules.MODEL_SHORT` times above it: segment starts tracked by an extended Kalman filter
+   (:func:`.rescue_routes.tracked_route`, ``solver["tracked_route"]``); where it still ends above noise
+   (however far): the prediction-error fit from the start, then those tracked starts
+   (:func:`.rescue_routes.prediction_error_route`, ``solver["prediction_error_route"]``); each kept when lower;
+5. **uncertainty** — the Gauss-Newton covariance of the estimates with the segment states as nuisance
+   parameters, each signal weighted by its residual standard deviation (:mod:`.uncertainty`);
+6. **validation** — the fitted model simulated over the validation part with the recorded command, from the
+   state the fit estimated at its start, scored with MATLAB's fit % (:mod:`.validation`);
+7. **result** — estimates, standard errors, correlations, warnings, and the noise check: the residual rms
+   of each measured signal over its sensor noise; above :data:`.rules.ABOVE_NOISE_WARNING` the result says
+   ``converged_to_noise = False``, ``solver["success"] = False`` and warns (:class:`.result.FitResult`).
+
+``warm_start=`` (a fit of the same recording) skips 2. and 4.: the trust region and IPOPT start from that
+fit's parameters and states (diagnosis's refits with one more effect).  The stages are the fields of
+:class:`FitStages`; the thresholds that pick the path are in :mod:`.rules`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..errors import FitError
+from ..model import Effect
+from ..recording import Recording
+from ..rig import Rig
+from .constrained import settle_gauss_newton, solve_ipopt_exact
+from .initial import better_first_state, initial_starts
+from .progress import Progress, rounds_text, routes_text
+from .rescue_routes import prediction_error_route, short_segments_route, tracked_route
+from .result import FitResult, ParameterEstimate
+from .rules import (ABOVE_NOISE_WARNING, IPOPT_MAX_ITER, MODEL_SHORT, PENALTY_WEIGHT, PREFIT_SAMPLES, PREFIT_STARTS,
+                    SAME_PREFIT, SEGMENT_SAMPLES, SHORT_SEGMENTS, START_FACTORS, WARM_CONTINUE_BELOW, WARM_TOLERANCE)
+from .setup import FitSetup, _name
+from .shooting import ShootingProblem
+from .stages import full_fit, prefit, well_above
+from .threads import one_blas_thread
+from .trust_region import trust_region
+from .uncertainty import covariance
+from .validation import validate
+from .warm_start import warm_states
+
+__all__ = ["PhysicalFit", "FitStages"]
+
+
+@dataclass(frozen=True)
+class FitStages:
+    """The stages of :class:`PhysicalFit`, each a callable, today's by default.  Pass others to study or test
+    one stage alone, e.g. ``FitStages(settle=lambda *args: None)`` finishes every fit by IPOPT.
+
+    Attributes
+    ----------
+    prefit : ``(pb, v0, lower, upper) -> (v, rms, info)``
+        The pre-fit's trust region on the window (:func:`.stages.prefit`).
+    short_segments : ``(short, pb, lower, upper, theta0, v, rms, window) -> (v, rms, info)``
+        The pre-fit's short-segment route (:func:`.rescue_routes.short_segments_route`).
+    whole_fit : ``(pb, v0, lower, upper, prefit_rms, finish=) -> (v, rms, info)``
+        The whole estimation part's trust region (:func:`.stages.full_fit`).
+    settle : ``(pb, v, rms, rtol, lower, upper) -> IpoptResult or None``
+        Gauss-Newton on the exact problem where the trust region ended at noise
+        (:func:`.constrained.settle_gauss_newton`); None hands over to ``finish``.
+    finish : ``(pb, v, lower, upper, max_iter, rtol, penalty=) -> IpoptResult``
+        IPOPT on the exact problem (:func:`.constrained.solve_ipopt_exact`).
+    warm_trust_region : ``(pb, v0, lower, upper, defect_weight=, tolerance=) -> (v, rms, info)``
+        A warm refit's trust region (:func:`.trust_region.trust_region`).
+    tracked : ``(pb, v, lower, upper, rms, finish) -> (IpoptResult or None, info)``
+        The tracked-starts route (:func:`.rescue_routes.tracked_route`).
+    prediction_error : ``(window, pb, lower, upper, theta0, x_first, rms, finish) -> (IpoptResult or None, info)``
+        The prediction-error route (:func:`.rescue_routes.prediction_error_route`).
+    uncertainty : ``(pb, v) -> dict``
+        Standard errors, correlations, residual stds and states (:func:`.uncertainty.covariance`).
+    validate : ``(model, params, recording, n_est, x0, delay_s, stroke_m, rtol) -> dict``
+        The validation part's simulation and fit % (:func:`.validation.validate`).
+    """
+
+    prefit: Callable = prefit
+    short_segments: Callable = short_segments_route
+    whole_fit: Callable = full_fit
+    settle: Callable = settle_gauss_newton
+    finish: Callable = solve_ipopt_exact
+    warm_trust_region: Callable = trust_region
+    tracked: Callable = tracked_route
+    prediction_error: Callable = prediction_error_route
+    uncertainty: Callable = covariance
+    validate: Callable = validate
+
+
+class PhysicalFit:
+    """The physical fit of a rig's uncertain parameters (and those of ``effects``) to a recording.
+
+    The constructor only stores the options (see :func:`~pneusim.fit.fit_recording` for each);
+    :meth:`fit` fits one recording.  ``stages`` (:class:`FitStages`) holds the stage callables.
+
+    Examples
+    --------
+    >>> fit = PhysicalFit(rig, quiet=True).fit(recording)                              # doctest: +SKIP
+    >>> ipopt_only = PhysicalFit(rig, stages=FitStages(settle=lambda *a: None))        # doctest: +SKIP
+    """
+
+    def __init__(self, rig: Rig | str | None = None, effects: Sequence[Effect] = (), free: Sequence[str] | None = None,
+                 *, validation_fraction: float | None = None, segment_samples: int = SEGMENT_SAMPLES,
+                 prefit_samples: int = PREFIT_SAMPLES, starts: int = PREFIT_STARTS, rtol: float = 1e-6,
+                 threads: int = 2, max_iter: int = IPOPT_MAX_ITER, quiet: bool = False, verbose: bool = False,
+                 stages: FitStages = FitStages()):
+        self.rig, self.effects, self.free = rig, effects, free
+        self.validation_fraction, self.segment_samples = validation_fraction, segment_samples
+        self.prefit_samples, self.starts, self.rtol, self.threads = prefit_samples, starts, rtol, threads
+        self.max_iter, self.quiet, self.verbose, self.stages = max_iter, quiet, verbose, stages
+
+    @one_blas_thread
+    def fit(self, recording: Recording, warm_start: FitResult | None = None,
+            start_values: dict | None = None) -> FitResult:
+        """Fit ``recording``: checks and split, pre-fit from each start, whole fit, rescue routes, uncertainty,
+        validation, result (``warm_start``: a refit from that fit of the same recording, no pre-fit and no
+        rescue).  Raises :class:`FitError` like :func:`~pneusim.fit.fit_recording`."""
+        run = _Run(self, recording, warm_start, start_values)
+        try:
+            if warm_start is None:
+                best = self._rescue(run, self._fit_from_starts(run))
+            else:
+                best = self._refit_warm(run, warm_start)
+            return self._result(run, best)
+        finally:
+            run.close()
+
+    # ------------------------------------------------------------------ pre-fit and whole fit from each start
+    def _fit_from_starts(self, run: "_Run"):
+        """Each start's pre-fit, then the whole part from it, until a fit needs no restart; the best fit.
+
+        A short window can leave two basins equally good (the valve's critical pressure ratio against its
+        conductance, say) that the whole part tells apart: a fit that ends well above its pre-fit's residual
+        is retried from the next start (``docs/decisions/0013``)."""
+        setup = run.setup
+        run.open_window(self.prefit_samples)
+        for k, factors in enumerate(START_FACTORS[:max(1, self.starts)]):
+            theta0 = np.clip(setup.theta_start * np.array([factors.get(name, 1.0) for name in setup.free]),
+                             setup.lower, setup.upper)
+            pre = self._prefit(run, k, theta0)
+            if pre is None:
+                continue
+            rms_pre, rms = pre[1], self._whole_fit(run, k, *pre)
+            if not self._restart(run, k, rms, rms_pre):
+                break
+        return min(run.fits, key=lambda f: (f[0], f[1]))[2]
+
+    def _prefit(self, run: "_Run", k: int, theta0):
+        """Start ``k``'s pre-fit from ``theta0`` on the window, and its short-segment route where that applies:
+        ``(v, rms)``, or None where it ended where an earlier start's did (the same basin: not fitted again)."""
+        pb, lo, hi = run.window
+        chained = initial_starts(pb, theta0, run.window_recording, pb.data.n_samples)
+        if k == 0 and run.window_start == 0:
+            run.first_at_start = chained[0]   # the prediction-error route starts from here too
+        v_pre, rms_pre, info = self.stages.prefit(pb, pb.join(theta0, chained), lo, hi)
+        attempt = {"start": k + 1, "rms_normalised": rms_pre, "window_start_sample": run.window_start, **info}
+        run.attempts.append(attempt)
+        where = "" if run.window_start == 0 else f" from sample {run.window_start}, where the piston moves"
+        run.say(f"start {k + 1}, pre-fit ({pb.data.n_samples} samples{where}): trust region {info['status']} after "
+                f"{info['evaluations']} evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_pre:.3g}"
+                + routes_text(info))
+        same = [a["start"] for a in run.attempts[:-1] if abs(rms_pre / a["rms_normalised"] - 1.0) < SAME_PREFIT]
+        if same:
+            attempt["fit_skipped"] = f"pre-fit ended where start {same[0]}'s did"
+            run.say(f"start {k + 1}: the pre-fit ended where start {same[0]}'s did ({rms_pre:.3g}), the same basin: "
+                    "not fitted again")
+            return None
+        if run.recording.has_pressures and ABOVE_NOISE_WARNING < rms_pre <= MODEL_SHORT:
+            short = run.problem(run.window_stop, SHORT_SEGMENTS, start=run.window_start)
+            v_pre, rms_pre, route = self.stages.short_segments(short, pb, lo, hi, theta0, v_pre, rms_pre,
+                                                               run.window_recording)
+            attempt["short_segments"] = route
+            run.say(f"short segments ({SHORT_SEGMENTS} samples): pre-fit {route['rms_short_normalised']:.3g}, then "
+                    f"{route['rms_normalised']:.3g} on the pre-fit's segments against {attempt['rms_normalised']:.3g}: "
+                    f"{'kept' if route['kept'] else 'not kept'} ({route['seconds']:.1f} s)")
+        return v_pre, rms_pre
+
+    def _whole_fit(self, run: "_Run", k: int, v_pre, rms_pre: float) -> float:
+        """The whole estimation part from start ``k``'s pre-fit ``v_pre``: the trust region, then the exact
+        problem (Gauss-Newton settling, else IPOPT); the fit joins ``run.fits``.  Returns its normalised rms."""
+        pb, lo, hi = run.pb, run.lo, run.hi
+        theta0, prefit_states = run.window[0].split(v_pre)
+        x_init = self._whole_starts(run, theta0, prefit_states)
+        v_ls, rms_ls, info = self.stages.whole_fit(pb, pb.join(theta0, x_init), lo, hi, rms_pre, finish=run.finish)
+        run.say(f"start {k + 1}, fit ({run.setup.n_est} samples): trust region {info['status']} after "
+                f"{info['evaluations']} evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_ls:.3g}"
+                + routes_text(info))
+        # IPOPT on the kept route's point, unless the direct route's was already finished and kept; where
+        # the continuation was kept over a finished direct route, the better of the two finished fits
+        finished = info.pop("finished", None)
+        done = self.stages.settle(pb, v_ls, rms_ls, self.rtol, lo, hi) if finished is None else None
+        if done is not None:
+            res, rms = done, normalised_rms(pb, done)
+        else:
+            res, rms = finished if finished is not None and info["route"] == "direct" else run.finish(v_ls)
+        if finished is not None and info["route"] != "direct" and finished[0].objective < res.objective:
+            res, rms = finished
+        run.attempts[-1].update(fit_rms_normalised=rms, fit_routes=info["routes"], ipopt_status=res.status,
+                                ipopt_iterations=res.iterations)
+        run.fits.append((res.objective if np.isfinite(res.objective) else np.inf, k, res))
+        how = (f"settled by {res.iterations} Gauss-Newton steps on the constrained problem (largest defect "
+               f"{res.max_defect:.2g}, the next step within a tenth of every standard error; IPOPT not needed)"
+               if done is not None else
+               f"IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s)")
+        run.say(f"start {k + 1}, fit: {how}, normalised rms residual {rms:.3g}")
+        return rms
+
+    @staticmethod
+    def _whole_starts(run: "_Run", theta0, prefit_states) -> np.ndarray:
+        """The whole part's segment start states at the pre-fit's parameters ``theta0``: chained from the
+        recording's start, the pre-fit's own states where its window is the part's start, and the better of
+        two first states (``docs/decisions/0014``).
+
+        A window moved to where the piston moves begins at rest, with chamber pressures the window barely
+        says anything about: there the chained states are kept throughout."""
+        pb, window = run.pb, run.window[0]
+        x_init = initial_starts(pb, theta0, run.recording, run.setup.n_est)
+        fresh_first = x_init[0].copy()
+        for j, first in enumerate(pb.starts.tolist() if run.window_start == 0 else []):
+            if first in window.starts and first < window.starts[-1]:
+                x_init[j] = prefit_states[list(window.starts).index(first)]
+        x_init[0] = better_first_state(pb, theta0, [x_init[0], fresh_first])
+        return x_init
+
+    @staticmethod
+    def _restart(run: "_Run", k: int, rms: float, rms_pre: float) -> bool:
+        """Whether start ``k``'s fit (``rms``, its pre-fit ``rms_pre``) calls for the next start: it ended well
+        above its pre-fit (the window had a second basin), or both ended above noise (the window's basin need
+        not be the whole part's); not where the pre-fit itself ends more than :data:`.rules.MODEL_SHORT` times
+        above noise: the model lacks physics there, which no other start supplies (``docs/decisions/0009``)."""
+        if not (well_above(rms, rms_pre) or min(rms, rms_pre) > ABOVE_NOISE_WARNING):
+            return False
+        if rms_pre > MODEL_SHORT:
+            run.say(f"start {k + 1}: not restarting, the pre-fit itself ends {rms_pre:.3g} times above noise "
+                    f"(more than {MODEL_SHORT:g}): the model lacks physics here")
+            return False
+        return True
+
+    # ------------------------------------------------------------------------------------- the warm refit
+    def _refit_warm(self, run: "_Run", warm_start: FitResult):
+        """A refit from ``warm_start``'s parameters and states: no pre-fit, no other starts; the trust region
+        with a looser tolerance (near the optimum it only has to bring the new effect in), then IPOPT, one
+        more IPOPT round where the iteration cap stopped it while the new effect was still coming in
+        (``docs/decisions/0016``)."""
+        pb, lo, hi, setup = run.pb, run.lo, run.hi, run.setup
+        x_init = warm_states(warm_start, pb, setup.p_start, run.recording)
+        v_ls, rms_ls, info = self.stages.warm_trust_region(pb, pb.join(setup.theta_start, x_init), lo, hi,
+                                                           defect_weight=PENALTY_WEIGHT, tolerance=WARM_TOLERANCE)
+        run.say(f"warm start: trust region {info['status']} after {info['evaluations']} evaluations "
+                f"({info['seconds']:.1f} s), normalised rms residual {rms_ls:.3g}")
+        res = self.stages.finish(pb, v_ls, lo, hi, self.max_iter, self.rtol, penalty=PENALTY_WEIGHT)
+        rms = normalised_rms(pb, res)
+        run.say(f"warm start: IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s), "
+                f"normalised rms residual {rms:.3g}")
+        if (res.status == "Maximum_Iterations_Exceeded" and rms > ABOVE_NOISE_WARNING
+                and rms < WARM_CONTINUE_BELOW * rms_ls):
+            # stopped by the iteration cap while the new effect is still coming in: one more round, kept when
+            # it lowers the residual; not where IPOPT has stalled (a wrong candidate creeping along)
+            more = self.stages.finish(pb, res.v, lo, hi, self.max_iter, self.rtol, penalty=PENALTY_WEIGHT)
+            if np.isfinite(more.objective) and more.objective < res.objective:
+                more.iterations += res.iterations
+                more.seconds += res.seconds
+                res = more
+                rms = normalised_rms(pb, res)
+            run.say(f"warm start: IPOPT continued to {res.iterations} iterations, normalised rms residual {rms:.3g}")
+        run.attempts.append({"start": "warm", "fit_rms_normalised": rms, "ipopt_status": res.status,
+                             "ipopt_iterations": res.iterations, **info})
+        run.fits.append((res.objective if np.isfinite(res.objective) else np.inf, 0, res))
+        return min(run.fits, key=lambda f: (f[0], f[1]))[2]
+
+    # ------------------------------------------------------------------------------------ the rescue routes
+    def _rescue(self, run: "_Run", res):
+        """The rescue routes after the best fit ``res``: tracked starts where it ended above noise but neither
+        it nor every pre-fit more than :data:`.rules.MODEL_SHORT` times above it (a recording too chaotic for
+        chained starts), then the prediction-error route where it still ends above noise, however far (a
+        recording too chaotic for the shooting problem's landscape; the filter itself tells that apart from
+        a model that lacks physics).  Each kept when lower (``docs/decisions/0017``, ``0018``)."""
+        pb, lo, hi = run.pb, run.lo, run.hi
+        rms_best = normalised_rms(pb, res)
+        if (ABOVE_NOISE_WARNING < rms_best <= MODEL_SHORT
+                and min(a["rms_normalised"] for a in run.attempts) <= MODEL_SHORT):
+            res, run.tracked = _better(res, *self.stages.tracked(pb, res.v, lo, hi, rms_best, run.finish))
+            run.say("tracked starts: " + rounds_text(run.tracked) + f" against {rms_best:.3g}: "
+                    f"{'kept' if run.tracked['kept'] else 'not kept'} ({run.tracked['seconds']:.1f} s)")
+        if normalised_rms(pb, res) > ABOVE_NOISE_WARNING:
+            res = self._prediction_error(run, res)
+        run.window[0].close()
+        return res
+
+    def _prediction_error(self, run: "_Run", res):
+        """The prediction-error route from the start against the best fit ``res``, on a window at the
+        recording's start (the filter tracks the whole part from there)."""
+        setup = run.setup
+        if run.window_start > 0:
+            run.window[0].close()
+            run.window = run.problem(min(setup.n_est, self.prefit_samples))
+            window = run.window[0]
+            run.first_at_start = initial_starts(window, setup.theta_start, run.recording, window.data.n_samples)[0]
+        res, run.predicted = _better(res, *self.stages.prediction_error(
+            run.window[0], run.pb, run.lo, run.hi, setup.theta_start, run.first_at_start, normalised_rms(run.pb, res),
+            run.finish))
+        pem = run.predicted["prediction_error"]
+        run.say(f"prediction-error route: filter innovations {pem['rms_innovations']:.3g} ({pem['seconds']:.1f} s)"
+                + (", tracked starts " + rounds_text(run.predicted) if "rounds" in run.predicted else "")
+                + f": {'kept' if run.predicted['kept'] else 'not kept'} ({run.predicted['seconds']:.1f} s)")
+        return res
+
+    # ---------------------------------------------------------------- uncertainty, validation and result
+    def _result(self, run: "_Run", res) -> FitResult:
+        """Uncertainty at the fit ``res``, validation, and the :class:`FitResult`."""
+        pb, setup, recording = run.pb, run.setup, run.recording
+        if not np.isfinite(res.objective):
+            raise FitError(f"{_name(recording)}: the model could not be integrated at the optimiser's last point "
+                           f"(IPOPT: {res.status}); check the rig file and the effects")
+        theta, _ = pb.split(res.v)
+        estimate = pb.params_of(theta)
+        uncertainty = self.stages.uncertainty(pb, res.v)
+        # the continuity defects left open at the optimum (state-scaled): a fit that ended in the penalty form
+        # bought part of its residual with them, which a comparison of residuals alone would reward
+        defects = pb.evaluate(res.v, derivatives=False)["g"]
+        defect_sum_squares = float(np.dot(defects, defects)) if np.all(np.isfinite(defects)) else float("inf")
+        pb.close()
+        run.say("uncertainty: Gauss-Newton covariance done")
+        n_est = setup.n_est
+        validation = self.stages.validate(setup.model, estimate, recording, n_est, uncertainty["states"][n_est - 1].copy(),
+                                          setup.delay_s, setup.rig.stroke_m, self.rtol)
+        result = FitResult.build(
+            recording=recording, rig=setup.rig, model=setup.model, free=setup.free,
+            parameters=_estimates(setup, estimate, uncertainty),
+            correlation=uncertainty["correlation"][:len(setup.free), :len(setup.free)], params_vector=estimate,
+            n_estimation=n_est, sigma=uncertainty["sigma"], noise_std=setup.sigma, validation=validation,
+            solver=run.solver_info(res, defect_sum_squares), estimation_states=uncertainty["states"])
+        run.say(f"done in {result.solver['seconds']:.1f} s: validation fit {result.fit_percent:.2f} %, normalised "
+                f"residual {result.normalised_residual:.3g} (noise level 1)"
+                + ("" if result.converged_to_noise else " -- ABOVE NOISE, see the warnings"))
+        return result
+
+
+class _Run:
+    """One fit's state: the setup, the whole estimation part's problem, the pre-fit's window and its problem,
+    the attempts and fits so far, the rescue routes' reports, and the stage lines."""
+
+    def __init__(self, options: PhysicalFit, recording: Recording, warm_start, start_values):
+        self.started = time.perf_counter()
+        self.say = Progress(options.quiet and not options.verbose, self.started)
+        self.options, self.recording, self.warm = options, recording, warm_start is not None
+        validation_fraction = options.validation_fraction
+        if validation_fraction is None and warm_start is not None:
+            # the warm fit's split: round(n * (n_est / n)) gives back n_est exactly
+            validation_fraction = 1.0 - warm_start.n_estimation / recording.n_samples
+        self.setup = FitSetup(recording, options.rig, options.effects, options.free, validation_fraction,
+                              warm_start, start_values, options.segment_samples)
+        self.pb, self.lo, self.hi = self.problem(self.setup.n_est)
+        self.window = None
+        self.window_start = self.window_stop = 0
+        self.window_recording = recording
+        self.first_at_start = None
+        self.attempts, self.fits = [], []
+        self.tracked = self.predicted = None
+
+    def problem(self, stop: int, segment: int | None = None, start: int = 0):
+        """``(problem, lower, upper)`` of samples ``start`` to ``stop - 1`` (:meth:`.setup.FitSetup.problem`)."""
+        return self.setup.problem(stop, self.options.rtol, self.options.threads, segment, start)
+
+    def open_window(self, samples: int) -> None:
+        """The pre-fit's window of ``samples`` samples: the estimation part's first, unless the piston hardly
+        moves there (:meth:`.setup.FitSetup.prefit_start`); its recording and its problem."""
+        start = self.setup.prefit_start(samples)
+        stop = start + min(self.setup.n_est, samples)
+        rec = self.recording
+        self.window_start, self.window_stop = start, stop
+        self.window_recording = rec if start == 0 else rec.slice(rec.time_s[start], rec.time_s[stop])
+        self.window = self.problem(stop, start=start)
+
+    def finish(self, v):
+        """IPOPT on the whole estimation part from ``v``: ``(result, normalised rms)``."""
+        options = self.options
+        done = options.stages.finish(self.pb, v, self.lo, self.hi, options.max_iter, options.rtol, penalty=PENALTY_WEIGHT)
+        return done, normalised_rms(self.pb, done)
+
+    def solver_info(self, res, defect_sum_squares: float) -> dict:
+        """The result's ``solver`` dict: the final solver's status and counts, the path taken, the seconds."""
+        return {"status": res.status, "ipopt_success": res.success, "iterations": res.iterations,
+                "seconds": time.perf_counter() - self.started, "ipopt_seconds": res.seconds,
+                "max_defect": res.max_defect, "defect_sum_squares": defect_sum_squares,
+                "prefit_attempts": self.attempts, "tracked_route": self.tracked,
+                "prediction_error_route": self.predicted, "formulation": res.formulation, "warm_start": self.warm,
+                "segments": int(self.pb.n_segments), "segment_samples": self.setup.seg}
+
+    def close(self) -> None:
+        """Release the problems' integrator threads (again: closing twice is harmless)."""
+        self.pb.close()
+        if self.window is not None:
+            self.window[0].close()
+
+
+def normalised_rms(pb: ShootingProblem, res) -> float:
+    """The normalised rms residual of an IPOPT result (noise level 1)."""
+    return float(np.sqrt(res.objective / max(pb.n_residuals, 1)))
+
+
+def _better(res, done, info: dict):
+    """``(fit, info)``: a route's finished fit ``done`` where it is finite and lower than ``res`` (its
+    iterations and seconds counted on top of ``res``'s), else ``res``; ``info["kept"]`` says which."""
+    info["kept"] = bool(done is not None and np.isfinite(done.objective) and done.objective < res.objective)
+    if not info["kept"]:
+        return res, info
+    done.iterations += res.iterations
+    done.seconds += res.seconds
+    return done, info
+
+
+def _estimates(setup: FitSetup, estimate: np.ndarray, uncertainty: dict) -> dict:
+    """``{name: ParameterEstimate}`` of the free parameters from the fitted parameter vector ``estimate`` (SI)."""
+    parameters = {}
+    for k, name in enumerate(setup.free):
+        lo_b, hi_b = setup.bounds[k]
+        i = setup.index[k]
+        # IPOPT may end a hair outside a bound (its bound_relax_factor): report the bound itself, so a physical
+        # range check never refuses a fitted value such as a static friction of -4e-7 N
+        parameters[name] = ParameterEstimate(
+            name=name, estimate=float(np.clip(estimate[i], lo_b, hi_b)), std=float(uncertainty["std"][k] * setup.scales[k]),
+            start=float(setup.p_start[i]), lower=float(lo_b), upper=float(hi_b))
+    return parameters
