@@ -3,7 +3,10 @@
 * Every fenced bash and python block of every ``docs/**/*.md`` runs as written, the blocks of one
   document in order in one fresh folder, as in ``tests/test_readme.py``.  A block that is skipped
   (``<!-- readme-test: skip: REASON -->``) must say why.
-* Every relative link of ``README.md`` and ``docs/`` names a file or folder of the repository.
+* Every relative link of ``README.md`` and ``docs/`` names a file or folder of the repository; every
+  module, class or function named in backticks by its dotted path (``pneusim.fit.rules``,
+  ``pneusim.plant.SimulatedPlant``) exists, and so does every repository path named in backticks
+  (``pneusim/solver/small_dense.h``).
 * ``docs/decisions/README.md`` lists every decision record in the folder, and links only to records
   that exist; every record has the four sections.
 * Every table in ``docs/results/`` names the commit, the machine and the date it was measured at.
@@ -11,6 +14,8 @@
 
 from __future__ import annotations
 
+import importlib
+import importlib.util
 import re
 import sys
 from pathlib import Path
@@ -24,6 +29,12 @@ DOCS = ROOT / "docs"
 DOC_FILES = sorted(DOCS.rglob("*.md"))
 #: ``[text](target)`` Markdown links; the target up to a space, a closing parenthesis or a fragment
 LINK = re.compile(r"\[[^\]]*\]\(([^)\s#]+)(?:#[^)]*)?\)")
+#: a dotted name of the two packages in backticks, e.g. `pneusim.fit.rules` or `sysid.RecursiveARX`
+DOTTED = re.compile(r"`((?:pneusim|sysid)(?:\.[A-Za-z_][A-Za-z0-9_]*)+)`")
+#: a repository path in backticks, e.g. `pneusim/solver/small_dense.h` (not patterns with * or <>)
+REPO_PATH = re.compile(r"`((?:pneusim|sysid|benchmarks|scripts|tests|examples|scenarios|docs)/[^`*<> ]*)`")
+#: files a document tells its reader to create (a worked example), which therefore do not exist
+TO_BE_CREATED = {"tests/pneusim/model/effects/test_backlash.py"}
 RECORD = re.compile(r"^(\d{4})-[a-z0-9-]+\.md$")
 SECTIONS = ("## Context", "## Decision", "## Evidence", "## Alternatives considered")
 
@@ -49,6 +60,34 @@ def test_relative_links_resolve(doc):
     missing = [target for target in LINK.findall(text)
                if not re.match(r"^[a-z]+:", target) and not (doc.parent / target).exists()]
     assert not missing, f"{_name(doc)} links to files that do not exist: {missing}"
+
+
+def _resolves(dotted: str) -> bool:
+    """Whether ``dotted`` is a module, or an attribute chain of the longest module prefix of it."""
+    parts = dotted.split(".")
+    for cut in range(len(parts), 0, -1):
+        name = ".".join(parts[:cut])
+        try:
+            if importlib.util.find_spec(name) is None:
+                continue
+        except ModuleNotFoundError:
+            continue
+        obj = importlib.import_module(name)
+        for attribute in parts[cut:]:
+            if not hasattr(obj, attribute):
+                return False
+            obj = getattr(obj, attribute)
+        return True
+    return False
+
+
+@pytest.mark.parametrize("doc", [ROOT / "README.md"] + [p for p in DOC_FILES if "decisions" not in p.parts], ids=_name)
+def test_named_modules_and_paths_exist(doc):
+    text = doc.read_text(encoding="utf-8")
+    missing = sorted({name for name in DOTTED.findall(text) if not _resolves(name)})
+    missing += sorted({path for path in REPO_PATH.findall(text)
+                       if path not in TO_BE_CREATED and not (ROOT / path.rstrip("/")).exists()})
+    assert not missing, f"{_name(doc)} names what does not exist (renamed or moved?): {missing}"
 
 
 def test_the_decision_index_lists_every_record():
