@@ -1,7 +1,7 @@
 """Build the compiled helpers: a CVODE driver on CasADi-generated C code with the sample loop
 (``_cvode_compiled``, the simulator; it uses scikits.odes' Cython declarations of SUNDIALS) and a
 CVODES driver with forward sensitivities (``_cvodes_sensitivity``, the fit), and paper 1's RLS
-(``pneusim.scenario._rls``, the online identifier of the real-time loop).
+(``pneusim.online._rls``, the online identifier of the sample loop).
 
 scikits.odes ships its Cython declarations (.pxd) but not the small
 ``sundials_config.pxi`` they include; it is regenerated here from the installed
@@ -51,8 +51,8 @@ def extensions():
             depends=["pneusim/solver/small_dense.h", "pneusim/solver/small_vector.h"],   # the Newton systems' solver: rebuild when it changes
         )
 
-    # the online RLS of the real-time loop (pneusim.scenario.online.PaperRLS): plain C, no SUNDIALS
-    rls = Extension("pneusim.scenario._rls", ["pneusim/scenario/_rls.pyx"], include_dirs=[numpy.get_include()],
+    # the online RLS of the sample loop (pneusim.online.PaperRLS): plain C, no SUNDIALS
+    rls = Extension("pneusim.online._rls", ["pneusim/online/_rls.pyx"], include_dirs=[numpy.get_include()],
                     define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")], extra_compile_args=["-g0"])
     # the fit's CVODES driver with forward sensitivities declares what it uses itself
     return cythonize([solver_extension("_cvode_compiled", "sundials_cvode"),

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import pytest
 
-from pneusim.mre.clock import SleepPacing
+from pneusim.loop import SleepPacing
 from pneusim.mre.rt import DEFAULT_PRIORITY, RealtimeSettings
 from pneusim.mre.run import run_mre
 from pneusim.mre.scenario import load_mre

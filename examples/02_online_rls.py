@@ -31,7 +31,8 @@ import numpy as np
 
 from pneusim.experiment import Experiment, default_controller, pulse_train
 from pneusim.rig import load_rig
-from pneusim.scenario.online import PaperRLS, simulate_online
+from pneusim.online import PaperRLS
+from pneusim.scenario.online import simulate_online
 
 rig = load_rig("paper1-mre")
 ts = rig.sample_time_s          # 1 ms

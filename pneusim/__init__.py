@@ -1,10 +1,12 @@
 """pneusim: physics of servo-pneumatic rigs, solved by SUNDIALS, for benchmarking identification."""
 
-__version__ = "0.1.0"
+from .version import __version__
+
+__all__ = ["__version__", "diagnose"]
 
 
 def __getattr__(name):
-    # ``pneusim.diagnose(...)`` without importing CasADi at ``import pneusim``
+    # ``pneusim.diagnose(...)`` without importing CasADi and SciPy at ``import pneusim`` (seconds)
     if name == "diagnose":
         from .diagnosis import diagnose
 

@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
-from . import __version__
 from .errors import PneusimError
+from .version import __version__
 
-__all__ = ["main", "COMMANDS"]
+__all__ = ["main", "run_command", "build_parser", "COMMANDS"]
 
 #: sub-commands, in the order of ``pneusim --help``; a hyphen in a name is an underscore in its module
 COMMANDS = ("simulate", "check", "fit", "diagnose", "run", "sweep", "mre", "serve-rig", "rigs", "effects", "plot", "friction")
@@ -52,6 +53,11 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     args.argv = argv   # recordings write the command that made them
+    return run_command(args)
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """Run the parsed sub-command ``args.func(args)``; a user's mistake is one line on stderr and exit 2."""
     try:
         return int(args.func(args) or 0)
     except BrokenPipeError:
@@ -74,8 +80,6 @@ def main(argv: list[str] | None = None) -> int:
 
 def _silence_stdout() -> None:
     """Point stdout at /dev/null so that Python's flush at exit does not report the broken pipe again."""
-    import os
-
     try:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())

@@ -11,15 +11,16 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
-from typing import Protocol, Sequence
+from typing import Mapping, Protocol, Sequence
 
 import numpy as np
 
+from .controller import ProportionalController
 from .errors import PneusimError
 from .model import ActuatorModel, Effect
 from .rig import Rig
 from .sensors import Sensors
-from .solver.backends import make_backend
+from .solver.backends import CvodeBackend, make_backend
 
 __all__ = ["Plant", "Measurement", "SimulatedPlant"]
 
@@ -77,15 +78,21 @@ class SimulatedPlant:
         Seed of the sensor noise.
     noise_scale : float
         Multiplies the rig's sensor noise levels (0 for ideal sensors).
+    model : ActuatorModel or None
+        The model to integrate (default: the model of ``effects``, built once per process).
+    solver_options : mapping or None
+        Further options of the ODE backend (e.g. ``max_steps`` between two samples).
     """
 
     def __init__(self, rig: Rig, effects: Sequence[Effect] = (), *, backend: str = "cvode", rtol: float = 1e-6,
-                 seed: int = 0, noise_scale: float = 1.0, model: ActuatorModel | None = None):
+                 seed: int = 0, noise_scale: float = 1.0, model: ActuatorModel | None = None,
+                 solver_options: Mapping | None = None):
         self.rig = rig
         self.model = model if model is not None else _model_for(effects)
         self.params = self.model.param_vector(rig)
         self.sample_time_s = rig.sample_time_s
-        self.solver = make_backend(backend, self.model, self.params, rtol=rtol, stroke_m=rig.stroke_m)
+        self.solver = make_backend(backend, self.model, self.params, rtol=rtol, stroke_m=rig.stroke_m,
+                                   **dict(solver_options or {}))
         self.sensors = Sensors(rig, seed=seed, noise_scale=noise_scale)
         self.delay_s = self.model.command_delay_s()
         self._k = 0
@@ -124,13 +131,11 @@ class SimulatedPlant:
         :meth:`measure` / :meth:`step`.  Call :meth:`sync_from` afterwards to bring this plant
         up to where the loop stopped.
         """
-        from .controller import ProportionalController
-        from .solver.backends import CvodeBackend
-
         if type(self.solver) is not CvodeBackend or type(self.sensors) is not Sensors:
             return None
         if controller is not None and type(controller) is not ProportionalController:
             return None
+        # the compiled extension, as the CVODE backend imports it: the SciPy backends run without a build
         from .solver._cvode_compiled import SampleLoop
 
         if not hasattr(self, "_pending"):

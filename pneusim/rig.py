@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import json
 import math
-
 from pathlib import Path
 from typing import Mapping
 
@@ -88,9 +88,6 @@ RANGES = {
 #: parameters that must be whole numbers
 INTEGER = ("position_adc_bits",)
 
-#: kept for callers of the old name: parameters that must be > 0
-POSITIVE = tuple(k for k, (lo, _hi, lo_in, _hi_in, _u) in RANGES.items() if lo == 0.0 and not lo_in)
-
 
 def allowed_parameters() -> dict[str, tuple[str, ...]]:
     """``{section: parameter names}`` a rig file may hold (required, optional and defaulted)."""
@@ -139,13 +136,14 @@ class Rig:
     #: (written into recordings so that a run can be repeated)
     overrides: Mapping[str, float] = dataclasses.field(default_factory=dict)
     #: optional effects of a rig variant's ``[effects.NAME]`` tables, in ``NAME:PARAM=VALUE,...`` form;
-    #: data only: a scenario adds them to its effect list, :func:`pneusim.simulate.simulate` does not
+    #: data only: :func:`pneusim.simulate.rig_effects` builds (and checks) them, a scenario adds them to
+    #: its effect list, :func:`pneusim.simulate.simulate` does not
     effects: tuple[str, ...] = ()
     #: the data-sheet rig a variant file describes more realistically ("" for a data-sheet rig)
     variant_of: str = ""
-    #: the ``[daq]`` section (channels, ranges, volts per metre) as a :class:`pneusim.mre.daq.DaqConfig`,
-    #: or ``None``; used by the mixed-reality environment's ``nidaqmx`` plant
-    daq: object = None
+    #: the ``[daq]`` table as read (channels, ranges, volts per metre), or ``None``; data only: the
+    #: mixed-reality environment's ``nidaqmx`` plant checks it (:func:`pneusim.mre.daq.daq_config`)
+    daq: Mapping | None = None
 
     def __getitem__(self, key: str) -> float:
         return self.params[key]
@@ -207,14 +205,25 @@ class Rig:
                 except ValueError:
                     lines.append(f"{key} = {_toml_string(value)}")
         if self.daq is not None:                      # the NI card's channels (pneusim mre --plant nidaqmx)
-            lines += [""] + self.daq.to_toml_lines()
+            lines += ["", "[daq]"] + [f"{key} = {_toml_value(value)}" for key, value in self.daq.items()]
         return "\n".join(lines) + "\n"
 
 
 def _toml_string(text: str) -> str:
-    import json
-
     return json.dumps(str(text))   # a JSON string is a valid TOML basic string
+
+
+def _toml_value(value) -> str:
+    """A value read from TOML written back as TOML (the same type and value when read again)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return _toml_string(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{_toml_string(k)} = {_toml_value(v)}" for k, v in value.items()) + "}"
+    return repr(value)
 
 
 def write_rig(rig: Rig, path: str | Path, effects=()) -> Path:
@@ -289,23 +298,24 @@ def load_rig(name_or_path: str | Path) -> Rig:
     _check_values(params, str(path))
     return Rig(name=str(data.get("name", path.stem)), description=str(data.get("description", "")),
                params=params, sections=sections, source=str(path), effects=_effects_section(data, path),
-               variant_of=str(data.get("variant_of", "")), daq=_daq_section(data, path, params))
+               variant_of=str(data.get("variant_of", "")), daq=_daq_table(data, path))
 
 
-def _daq_section(data: dict, path: Path, params: Mapping[str, float]):
-    """The ``[daq]`` table checked into a :class:`pneusim.mre.daq.DaqConfig`, or ``None`` when absent."""
+def _daq_table(data: dict, path: Path) -> dict | None:
+    """The ``[daq]`` table as read, or ``None`` when absent (its keys are checked where the card is used)."""
     if "daq" not in data:
         return None
-    from .mre.daq import parse_daq_section
-
-    return parse_daq_section(data["daq"], path, dict(params))
+    if not isinstance(data["daq"], dict):
+        raise InputFileError("[daq] must be a table of channel names and numbers", path=path, field="daq")
+    return data["daq"]
 
 
 def _effects_section(data: dict, path: Path) -> tuple[str, ...]:
-    """``[effects.NAME]`` tables (``PARAM = value``, options as strings) -> ``("NAME:PARAM=VALUE,...", ...)``,
-    each checked by building the effect."""
-    from .model import parse_effect_text
+    """``[effects.NAME]`` tables (``PARAM = value``, options as strings) -> ``("NAME:PARAM=VALUE,...", ...)``.
 
+    Only their form is checked here; :func:`pneusim.simulate.rig_effects` builds each effect and names
+    this file and ``effects.NAME`` for an unknown effect or a bad value.
+    """
     table = data.get("effects", {})
     if not isinstance(table, dict):
         raise InputFileError("[effects] must hold [effects.NAME] tables", path=path, field="effects")
@@ -314,12 +324,7 @@ def _effects_section(data: dict, path: Path) -> tuple[str, ...]:
         if not isinstance(values, dict):
             raise InputFileError("expected a table [effects.NAME] of PARAM = value", path=path,
                                  field=f"effects.{name}")
-        text = name + (":" + ",".join(f"{k}={v}" for k, v in values.items()) if values else "")
-        try:
-            parse_effect_text(text)
-        except PneusimError as exc:
-            raise InputFileError(str(exc), path=path, field=f"effects.{name}") from None
-        texts.append(text)
+        texts.append(name + (":" + ",".join(f"{k}={v}" for k, v in values.items()) if values else ""))
     return tuple(texts)
 
 

@@ -1,6 +1,11 @@
-"""Build the experiment of a scenario: signal, loop, controller, and the data the identifiers see.
+"""Signals from their descriptions: the excitation of a scenario or the reference of an MRE run, the
+experiment around it, and the data the identifiers see.
 
-Signal units (``experiment.signal.unit``):
+A signal is a table (``[experiment.signal]`` of a scenario, ``[reference]`` of an MRE file) with a
+``kind`` (``multisine``, ``pulses``, ``steps``, ``doublets``) and its keys; :func:`validate_signal`
+checks it, :func:`build_signal` samples it.
+
+Signal units (``unit``):
 
 * ``native``: volts of valve command in open loop, metres of reference in closed loop;
 * ``m``: metres (closed-loop reference only);
@@ -14,16 +19,58 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..controller import ProportionalController
-from ..errors import PneusimError
-from ..experiment import (DEFAULT_KP_V_PER_M, Experiment, command_doublets, multisine, pulse_train,
-                          random_steps)
-from ..rig import Rig
+from .controller import ProportionalController
+from .errors import PneusimError
+from .experiment import DEFAULT_KP_V_PER_M, Experiment, command_doublets, multisine, pulse_train, random_steps
+from .rig import Rig
+from .tomlcheck import NUMBER, check_choice, check_keys, check_numbers, check_type, fail
 
-__all__ = ["build_signal", "build_experiment", "output_signal", "input_signal", "OUTPUT_SCALE"]
+__all__ = ["build_signal", "validate_signal", "build_experiment", "output_signal", "input_signal", "output_scale",
+           "sensor_gain", "OUTPUT_SCALE", "OUTPUT_UNITS", "SIGNAL_KINDS", "SIGNAL_UNITS"]
 
+SIGNAL_KINDS = ("multisine", "pulses", "steps", "doublets")
+SIGNAL_UNITS = ("native", "m", "sensor_V")
 #: output unit -> metres to unit factor (``sensor_V`` uses the rig's sensor gain)
 OUTPUT_SCALE = {"m": 1.0, "cm": 100.0, "mm": 1000.0}
+#: units of the identifiers' output
+OUTPUT_UNITS = ("m", "cm", "mm", "sensor_V")
+
+#: keys of a signal table and their types
+_SIGNAL_KEYS = {"kind": str, "unit": str, "offset": NUMBER, "components": list, "base": NUMBER, "amplitude": list,
+                "width_s": list, "rest_s": list, "sign": str, "low": NUMBER, "high": NUMBER, "hold_s": list,
+                "half_s": list, "seed": int, "note": str}
+_SIGNAL_COMMON = ("kind", "unit", "offset", "seed", "note")
+_SIGNAL_KIND_KEYS = {"multisine": ("components",), "pulses": ("base", "amplitude", "width_s", "rest_s", "sign"),
+                     "steps": ("low", "high", "hold_s"), "doublets": ("amplitude", "half_s", "rest_s")}
+
+
+def validate_signal(where, sig: dict, prefix: str = "experiment.signal") -> None:
+    """Check a signal table in place (``unit`` defaults to ``native``); a fault names ``where`` and the key."""
+    check_keys(where, prefix, sig, _SIGNAL_KEYS)
+    for key, value in sig.items():
+        check_type(where, f"{prefix}.{key}", value, _SIGNAL_KEYS[key])
+    if "kind" not in sig:
+        fail(where, f"{prefix}.kind", "required key missing")
+    check_choice(where, f"{prefix}.kind", sig["kind"], SIGNAL_KINDS)
+    check_keys(where, prefix, sig, _SIGNAL_COMMON + _SIGNAL_KIND_KEYS[sig["kind"]],
+               context=f" for kind = {sig['kind']!r}")
+    check_choice(where, f"{prefix}.unit", sig.setdefault("unit", "native"), SIGNAL_UNITS)
+    if sig["kind"] == "multisine":
+        comps = sig.get("components")
+        if not comps or not all(isinstance(c, list) and len(c) in (2, 3) and all(isinstance(x, NUMBER) for x in c)
+                                and c[1] >= 0 for c in comps):
+            fail(where, f"{prefix}.components", "expected a list of [amplitude, frequency_Hz >= 0(, phase_rad)]")
+    for key in ("amplitude", "width_s", "rest_s", "hold_s", "half_s"):
+        if key in sig:
+            check_numbers(where, f"{prefix}.{key}", sig[key], 2, "numbers [low, high]")
+            if sig[key][0] > sig[key][1]:
+                fail(where, f"{prefix}.{key}", f"expected [low, high] with low <= high, got {sig[key]!r}")
+            if key.endswith("_s") and not sig[key][0] > 0:
+                fail(where, f"{prefix}.{key}", f"expected positive durations in s, got {sig[key]!r}")
+    if "sign" in sig:
+        check_choice(where, f"{prefix}.sign", sig["sign"], ("both", "positive", "negative"))
+    if sig.get("seed", 0) < 0:
+        fail(where, f"{prefix}.seed", f"expected an integer >= 0, got {sig['seed']!r}")
 
 
 def build_signal(spec: dict, n: int, sample_time_s: float, seed: int) -> np.ndarray:
@@ -90,11 +137,14 @@ def build_experiment(rig: Rig, exp: dict) -> tuple[Experiment, np.ndarray]:
     return experiment, raw
 
 
+def output_scale(rig: Rig, unit: str) -> float:
+    """Metres to the output unit ``unit`` (:data:`OUTPUT_UNITS`): the factor, or the sensor gain in V/m."""
+    return sensor_gain(rig) if unit == "sensor_V" else OUTPUT_SCALE[unit]
+
+
 def output_signal(position_m: np.ndarray, rig: Rig, data: dict) -> np.ndarray:
     """The identifiers' output ``y`` (unit ``data.output_unit``, minus ``data.output_offset``)."""
-    unit = data["output_unit"]
-    scale = sensor_gain(rig) if unit == "sensor_V" else OUTPUT_SCALE[unit]
-    return np.asarray(position_m) * scale - float(data["output_offset"])
+    return np.asarray(position_m) * output_scale(rig, data["output_unit"]) - float(data["output_offset"])
 
 
 def input_signal(valve_cmd_V: np.ndarray, raw_signal: np.ndarray, data: dict) -> np.ndarray:

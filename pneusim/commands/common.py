@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import argparse
+import math
 import os
 from pathlib import Path
 
 from ..errors import PneusimError
 from ..model import Effect, parse_effect_text
-from ..rig import Rig, load_rig
+from ..mre.daq import daq_config
+from ..rig import Rig, known_rig_names, load_rig
+from ..simulate import rig_effects
 
 
 def output_file(path: str, option: str, suffixes: tuple[str, ...]) -> Path:
@@ -50,8 +54,18 @@ def parse_param_overrides(items: list[str] | None) -> dict[str, float]:
     return out
 
 
+def load_rig_file(name_or_path) -> Rig:
+    """:func:`pneusim.rig.load_rig` and the sections other parts read: the ``[effects.NAME]`` tables built
+    (:func:`pneusim.simulate.rig_effects`) and the ``[daq]`` table checked (:func:`pneusim.mre.daq.daq_config`),
+    so that any command refuses a broken rig file in one line naming the file and the field."""
+    rig = load_rig(name_or_path)
+    rig_effects(rig)
+    daq_config(rig)
+    return rig
+
+
 def rig_with_overrides(rig_name: str, params: list[str] | None) -> Rig:
-    return load_rig(rig_name).with_params(parse_param_overrides(params), origin="--param")
+    return load_rig_file(rig_name).with_params(parse_param_overrides(params), origin="--param")
 
 
 def parse_effects(items: list[str] | None) -> list[Effect]:
@@ -75,9 +89,6 @@ def number_type(what: str, low: float | None = None, high: float | None = None, 
     ``what`` is the expectation in words (e.g. ``"a duration in s > 0"``); argparse prints
     ``argument --duration: expected a duration in s > 0, got 'nan'`` and exits 2.
     """
-    import argparse
-    import math
-
     def parse(text: str):
         try:
             value = int(text) if integer else float(text)
@@ -135,21 +146,19 @@ def rig_for_recording(recording, path: str, rig_option: str | None, params: list
     that file exists, else its ``rig`` name, which must be known.  ``use_metadata_overrides`` applies
     the recording's ``rig_overrides`` (a re-run); ``--param`` overrides come last.
     """
-    from ..rig import known_rig_names
-
     meta = recording.metadata
     if rig_option:
-        rig = load_rig(rig_option)
+        rig = load_rig_file(rig_option)
     else:
         name = recording.rig
         rig_file = meta.get("rig_file")
         if rig_file and Path(rig_file).is_file():
-            rig = load_rig(rig_file)
+            rig = load_rig_file(rig_file)
         elif not name:
             raise PneusimError(f"{path} names no rig in its metadata ('# rig: ...'); give --rig NAME or --rig FILE.toml")
         else:
             try:
-                rig = load_rig(name)
+                rig = load_rig_file(name)
             except PneusimError as exc:
                 if "unknown rig" not in str(exc):
                     raise   # a rig file that exists but is broken: its own message names the field

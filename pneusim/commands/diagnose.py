@@ -3,6 +3,11 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
+
+from ..errors import PneusimError
+from ..model import EFFECTS
+from .common import load_rig_file, output_file, output_folder
 
 EXAMPLES = """examples:
   pneusim diagnose run.csv --json diagnosis.json --report diagnosis/     # open diagnosis/index.html
@@ -12,7 +17,7 @@ EXAMPLES = """examples:
 
 One recording: prints the findings (the JSON of shared/spec/diagnosis.md with --json; the report folder
 with --report: index.html, report.md, fit.png, residuals.png, one evidence plot per finding).
-Several recordings or a folder: runs them in parallel on the sweep executor (local processes by default)
+Several recordings or a folder: runs them in parallel (local processes by default, or Dask)
 and writes DIR/STEM/ (report), DIR/STEM.json and DIR/summary.csv + summary.md (one row per recording;
 a recording that fails is a row with its error, the others go on).  Exit code 2 for bad input."""
 
@@ -48,9 +53,11 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..errors import PneusimError
-    from ..model.effects import EFFECTS
-    from .common import output_file, output_folder
+    # the diagnosis imports SciPy and the fit (about a second): imported when the command runs, so that
+    # pneusim --help and the other commands start without it
+    from ..diagnosis import diagnose
+    from ..diagnosis.batch import diagnose_many, expand_recordings
+    from ..diagnosis.report import write_report
 
     for name in args.effect or []:
         if name not in EFFECTS:
@@ -61,15 +68,11 @@ def run(args) -> int:
         if value < 0:
             raise PneusimError(f"{option} must be >= 0, got {value}")
     if args.rig:
-        from ..rig import load_rig
-
-        load_rig(args.rig)  # an unknown rig is reported before any work
-    from ..diagnosis.batch import expand_recordings
-
+        load_rig_file(args.rig)  # an unknown rig is reported before any work
     files = expand_recordings(args.recordings)
     options = {"effects": args.effect, "validation_fraction": args.validation_fraction,
                "max_refits": args.max_refits, "max_lookalikes": args.max_lookalikes}
-    many = len(files) > 1 or any(__import__("pathlib").Path(r).is_dir() for r in args.recordings)
+    many = len(files) > 1 or any(Path(r).is_dir() for r in args.recordings)
     if many:
         if args.json:
             raise PneusimError("--json writes one recording's result; with several recordings give --report DIR "
@@ -77,8 +80,6 @@ def run(args) -> int:
         if not args.report:
             raise PneusimError("several recordings need --report DIR for their results and the summary table")
         out = output_folder(args.report, "--report")
-        from ..diagnosis.batch import diagnose_many
-
         rows = diagnose_many(files, out, args.rig, workers=args.workers, dask=args.dask,
                              progress=not args.quiet, **options)
         failed = [r for r in rows if r["status"] != "ok"]
@@ -91,15 +92,11 @@ def run(args) -> int:
         output_file(args.json, "--json", (".json",))
     if args.report:
         output_folder(args.report, "--report")
-    from ..diagnosis import diagnose
-
     result = diagnose(files[0], args.rig, progress=not args.quiet, **options)
     print(result.summary())
     if args.json:
         result.write_json(args.json)
         print(f"wrote {args.json}")
     if args.report:
-        from ..diagnosis.report import write_report
-
         print(f"wrote {write_report(result, args.report)}")
     return 0

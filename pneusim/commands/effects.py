@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from ..model.effects import EFFECTS, range_words
+
 
 def register(sub) -> None:
     p = sub.add_parser("effects", help="list the optional effects, their parameters, defaults and ranges",
@@ -11,8 +13,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..model.effects import EFFECTS, range_words
-
     for name, cls in EFFECTS.items():
         print(f"{name}: {cls.description}")
         for key, default in cls.parameters.items():

@@ -2,8 +2,14 @@
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
+import sys
+from pathlib import Path
+
 from ..plausibility import check_plausible
 from ..recording import read_recording
+from ..rig import write_rig
 from .common import (add_rig_arguments, number_type, output_file, output_folder, parse_effects,
                      rig_for_recording)
 
@@ -21,7 +27,7 @@ def register(sub) -> None:
                "above the sensor noise (residual rms / noise std above 1.5 for some measured signal: the model\n"
                "does not explain the recording; the result is still written). Above 1.1 the result says\n"
                "converged_to_noise: false and success: false and carries a warning.",
-        formatter_class=__import__("argparse").RawDescriptionHelpFormatter)
+        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("recording", metavar="RECORDING", help="pneusim-recording/1 file (.csv or .mat)")
     add_rig_arguments(p)
     p.add_argument("--free", action="append", metavar="NAME",
@@ -38,9 +44,15 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
-    from ..fit import fit_recording
+def run(args, fit_recording=None) -> int:
+    """The command; ``fit_recording`` replaces :func:`pneusim.fit.fit_recording` (tests stop before fitting)."""
+    # the fit imports SciPy's optimisers (about a second): imported when the command runs, so that
+    # pneusim --help and the other commands start without it
+    from ..fit import fit_recording as fit
+    from ..fit.report import write_fit_report
+    from ..fit.result import FAR_ABOVE_NOISE
 
+    fit_recording = fit_recording or fit
     if args.json:
         output_file(args.json, "--json", (".json",))
     if args.report:
@@ -54,7 +66,6 @@ def run(args) -> int:
     if args.rig and recording.rig and recording.rig != rig.name:
         mismatch = (f"--rig {args.rig} ({rig.name}) differs from the rig the recording names ('rig: "
                     f"{recording.rig}'): the fit describes {recording.rig}'s data with {rig.name}'s known values")
-        import sys
         print(f"pneusim fit: warning: {mismatch}", file=sys.stderr)
     effects = parse_effects(args.effect)
     result = fit_recording(recording, rig, effects, free=args.free, validation_fraction=args.validation_fraction,
@@ -69,20 +80,13 @@ def run(args) -> int:
         result.write_json(args.json)
         print(f"wrote {args.json}")
     if args.report:
-        from ..fit.report import write_fit_report
         print(f"wrote {write_fit_report(result, args.report)}")
     if args.rig_out:
-        import dataclasses
-        from pathlib import Path
-
-        from ..rig import write_rig
         fitted = dataclasses.replace(result.rig_, name=Path(args.rig_out).stem,
                                      description=f"{rig.name} fitted to {args.recording} (pneusim fit)")
         write_rig(fitted, args.rig_out, getattr(result, "effects_", ()))
         print(f"wrote {args.rig_out} (use it with --rig {args.rig_out})")
-    from ..fit.result import FAR_ABOVE_NOISE
     if result.normalised_residual > FAR_ABOVE_NOISE:
-        import sys
         print(f"pneusim fit: the residual is {result.normalised_residual:.2f} times the sensor noise (above "
               f"{FAR_ABOVE_NOISE}): the model does not explain this recording (exit status 3)", file=sys.stderr)
         return 3

@@ -5,6 +5,9 @@ from __future__ import annotations
 import math
 
 from ..errors import PneusimError
+from ..friction import FrictionStudy, read_friction_test
+from ..friction.data import seal_of
+from ..friction.plot import plot_friction_study
 from .common import output_file
 
 
@@ -45,9 +48,6 @@ def _bores(items) -> dict[str, float]:
 
 
 def run(args) -> int:
-    from ..friction import FrictionStudy, read_friction_test
-    from ..friction.data import seal_of
-
     if args.json:
         output_file(args.json, "--json", (".json",))
     if args.plot:
@@ -61,7 +61,5 @@ def run(args) -> int:
     if args.json:
         print(f"wrote {study.write_json(args.json)}")
     if args.plot:
-        from ..friction.plot import plot_friction_study
-
         print(f"wrote {plot_friction_study(study, args.plot)}")
     return 0

@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import os
 import sys
 
 from ..errors import PneusimError
+from ..mre.plants import parse_plant
+from ..mre.rt import DEFAULT_PRIORITY, RealtimeSettings
+from ..mre.run import run_mre
+from ..mre.scenario import load_mre
 from .common import DURATION, number_type, output_folder
 
 CPU = number_type("a CPU number >= 0", 0, integer=True)
-#: pneusim.mre.rt.DEFAULT_PRIORITY (not imported here: the command line starts without numpy)
-DEFAULT_PRIORITY = 40
 PRIORITY = number_type("a SCHED_FIFO priority in 0..99 (0: normal scheduling)", 0, 99, integer=True)
 
 
@@ -46,18 +49,13 @@ def register(sub) -> None:
     p.set_defaults(func=run, mode=None)
 
 
-def run(args) -> int:
-    from ..mre.plants import parse_plant
-    from ..mre.rt import RealtimeSettings
-    from ..mre.run import run_mre
-    from ..mre.scenario import load_mre
-
+def run(args, run_mre=run_mre) -> int:
+    """The command; ``run_mre`` replaces :func:`pneusim.mre.run.run_mre` (tests inject a fault)."""
     spec = load_mre(args.file)
     if args.plant is not None:
         parse_plant(args.plant)
     out = output_folder(args.out, "--out")
     if args.cpu is not None:
-        import os
         try:
             os.sched_setaffinity(0, {args.cpu})
         except (AttributeError, OSError) as exc:

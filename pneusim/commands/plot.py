@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+from ..plots import plot_recording
+from ..recording import read_recording
+from .common import output_file
+
 
 def register(sub) -> None:
     p = sub.add_parser("plot", help="plot a recording (PNG or SVG)",
@@ -13,10 +17,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..plots import plot_recording
-    from ..recording import read_recording
-    from .common import output_file
-
     output_file(args.out, "--out", (".png", ".svg"))
     plot_recording(read_recording(args.recording), args.out)
     print(f"wrote {args.out}")

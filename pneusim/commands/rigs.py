@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from ..rig import RANGES, known_rig_names, range_text
+from .common import load_rig_file
+
 
 def register(sub) -> None:
     p = sub.add_parser("rigs", help="list the shipped rigs and their parameters (SI units, allowed ranges)",
@@ -14,11 +17,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..rig import RANGES, known_rig_names, load_rig, range_text
-
     names = [args.name] if args.name else known_rig_names()
     for name in names:
-        rig = load_rig(name)
+        rig = load_rig_file(name)
         print(f"{rig.name}: {rig.description}")
         print(f"  file: {rig.source}")
         if args.params or args.name:

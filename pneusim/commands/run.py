@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from .common import output_folder
+
 EXAMPLES = """examples:
   pneusim run scenarios/paper1-online-rls.toml --out results/paper1
   pneusim run scenarios/paper2-multisine.toml --out results/paper2
@@ -30,6 +32,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    # the scenarios import SciPy, sysid and the fit (about a second): imported when the command runs, so
+    # that pneusim --help and the other commands start without them
     from ..scenario import load_scenario, run_scenario, validate_scenario, write_report
     from ..scenario.schema import set_dotted
     from ..scenario.sweep import parse_set_items
@@ -40,8 +44,6 @@ def run(args) -> int:
         for key, value in parse_set_items(args.set).items():
             set_dotted(spec, key, value, where=where)
         spec = validate_scenario(spec, where=where)
-    from .common import output_folder
-
     out = output_folder(args.out or Path("results") / spec["scenario"]["name"], "--out")
     result = run_scenario(spec, progress=not args.no_progress)
     write_report(result, out, scenario_path=args.scenario, overrides=list(args.set))

@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import sys
 
+from ..mre.rt import DEFAULT_PRIORITY, RealtimeScope, RealtimeSettings
+from ..mre.udp import RigServer
+from ..plant import SimulatedPlant
 from .common import NOISE_SCALE, SEED, add_rig_arguments, number_type, parse_effects, rig_with_overrides
 
 PORT = number_type("a UDP port in 1..65535", 1, 65535, integer=True)
 WATCHDOG = number_type("a time in s > 0", 0.0, low_included=False)
 SESSIONS = number_type("a whole number >= 1", 1, integer=True)
 CPU = number_type("a CPU number >= 0", 0, integer=True)
-#: pneusim.mre.rt.DEFAULT_PRIORITY (not imported here: the command line starts without numpy)
-DEFAULT_PRIORITY = 40
 PRIORITY = number_type("a SCHED_FIFO priority in 0..99 (0: normal scheduling)", 0, 99, integer=True)
 
 
@@ -42,10 +43,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..mre.rt import RealtimeScope, RealtimeSettings
-    from ..mre.udp import RigServer
-    from ..plant import SimulatedPlant
-
     rig = rig_with_overrides(args.rig, args.param)
     plant = SimulatedPlant(rig, parse_effects(args.effect), seed=args.seed, noise_scale=args.noise_scale)
     server = RigServer(plant, args.host, args.port, watchdog_s=args.watchdog, null_V=float(rig.params["valve_null_V"]))

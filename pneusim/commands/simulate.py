@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import math
 import shlex
 import sys
 
 from ..errors import PneusimError
 from ..experiment import INPUT_KINDS, standard_experiment
 from ..plausibility import end_stop_text
+from ..plots import plot_recording
 from ..recording import MIN_SAMPLES, read_recording, write_recording
-from ..simulate import rerun_recording, simulate
+from ..simulate import rerun_recording, rig_effects, simulate
 from .common import (DURATION, NOISE_SCALE, SEED, add_rig_arguments, effects_from_metadata, output_file,
                      parse_effects, rig_for_recording, rig_with_overrides)
 
@@ -80,7 +82,7 @@ def run(args) -> int:
             raise PneusimError("give --rig (paper1-mre, paper2-enfield or a rig file)")
         rig = rig_with_overrides(args.rig, args.param)
         if not args.effect and getattr(rig, "effects", ()):
-            effects = parse_effects(list(rig.effects))   # a rig file's [effects.NAME] tables (e.g. a fitted rig)
+            effects = rig_effects(rig)   # a rig file's [effects.NAME] tables (e.g. a fitted rig)
         duration = args.duration if args.duration is not None else (80.0 if rig.name == "paper2-enfield" else 20.0)
         seed = args.seed if args.seed is not None else 0
         noise = args.noise_scale if args.noise_scale is not None else 1.0
@@ -95,7 +97,6 @@ def run(args) -> int:
     if sim.recording.loop == "open":
         print(end_stop_text(sim.recording, rig.stroke_m))
     if args.plot:
-        from ..plots import plot_recording
         plot_recording(sim.recording, args.plot)
         print(f"wrote {args.plot}")
     return 0
@@ -115,8 +116,6 @@ def _int_meta(recording, key: str, default: int) -> int:
 
 
 def _float_meta(recording, key: str, default: float) -> float:
-    import math
-
     text = recording.metadata.get(key)
     if text is None:
         return default

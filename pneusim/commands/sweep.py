@@ -5,6 +5,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..errors import PneusimError
+from .common import output_folder
+
 EXAMPLES = """examples:
   pneusim sweep scenarios/sweep-paper2.toml --out results/sweep-paper2              # local processes
   pneusim sweep scenarios/sweep-paper2.toml --out results/sweep-paper2 --workers 0  # in this process
@@ -38,7 +41,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..errors import PneusimError
+    # the scenarios import SciPy, sysid and the fit (about a second): imported when the command runs, so
+    # that pneusim --help and the other commands start without them
     from ..scenario.sweep import load_sweep, run_sweep
 
     if args.workers is not None and args.workers < 0:
@@ -46,8 +50,6 @@ def run(args) -> int:
     if args.dask == "local" and args.workers == 0:
         raise PneusimError("--dask local needs --workers >= 1 (the number of Dask worker processes)")
     sweep = load_sweep(args.sweep)
-    from .common import output_folder
-
     out = output_folder(args.out or Path("results") / f"sweep-{sweep['name']}", "--out")
     info = run_sweep(sweep, out, workers=args.workers, dask=args.dask, progress=not args.no_progress,
                      retry_failed=args.retry_failed)

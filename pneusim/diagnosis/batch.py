@@ -1,4 +1,5 @@
-"""Many recordings: each diagnosed on the sweep executor (local processes or Dask), one summary table.
+"""Many recordings: each diagnosed in parallel (local processes or Dask, :mod:`pneusim.parallel`), one
+summary table.
 
 ``diagnose_many(paths, out_dir)`` writes, per recording, ``OUT/STEM/`` (the report folder, when
 reports are asked for) and ``OUT/STEM.json`` (the JSON result), and beside them ``OUT/summary.csv``
@@ -17,6 +18,9 @@ import traceback
 from pathlib import Path
 
 from ..errors import PneusimError
+from ..parallel import executor_map
+from .diagnose import diagnose
+from .report import write_report
 
 __all__ = ["diagnose_many", "expand_recordings", "SUMMARY_COLUMNS"]
 
@@ -45,8 +49,6 @@ def expand_recordings(items) -> list[Path]:
 
 def diagnose_one(path: str, rig, out_dir: str | None, report: bool, options: dict) -> dict:
     """Diagnose one recording in a worker; never raises (the row carries the error)."""
-    from .diagnose import diagnose
-
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     started = time.perf_counter()
     stem = Path(path).stem
@@ -65,8 +67,6 @@ def diagnose_one(path: str, rig, out_dir: str | None, report: bool, options: dic
         if out_dir:
             Path(out_dir, f"{stem}.json").write_text(json.dumps(d, indent=1, allow_nan=False))
             if report:
-                from .report import write_report
-
                 write_report(result, Path(out_dir) / stem)
     except PneusimError as exc:
         row["error"] = str(exc)
@@ -96,7 +96,7 @@ def diagnose_many(paths, out_dir, rig=None, *, workers: int | None = None, dask:
     workers : int, optional
         Local processes (default: CPU count; 0 runs in this process); Dask workers with ``dask="local"``.
     dask : str, optional
-        ``"local"`` or a scheduler address: run on Dask (:func:`pneusim.scenario.sweep._executor_map`).
+        ``"local"`` or a scheduler address: run on Dask (:func:`pneusim.parallel.executor_map`).
     report : bool
         Write each recording's report folder.
     **options
@@ -107,16 +107,14 @@ def diagnose_many(paths, out_dir, rig=None, *, workers: int | None = None, dask:
     list of dict
         One row per recording, in the order of ``paths`` (``result``: the JSON result, or None).
     """
-    from ..scenario.sweep import _executor_map
-
     files = expand_recordings(paths)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     if workers is None:
         workers = min(os.cpu_count() or 1, len(files))
     tasks = [(str(f), rig, str(out), report, options) for f in files]
-    rows = {r["recording"]: r for r in _executor_map(tasks, workers, dask, progress, func=diagnose_one, lost=_lost,
-                                                        desc="diagnose")}
+    rows = {r["recording"]: r for r in executor_map(diagnose_one, tasks, _lost, workers, dask, progress,
+                                                       desc="diagnose")}
     ordered = [rows[f.name] for f in files]
     write_summary(ordered, out)
     return ordered

@@ -15,11 +15,17 @@ drift: a late sample does not push the later deadlines back.
 
 The waiting pacers first spend spare time on :attr:`Pacing.idle` (the loop sets it to the
 recording writer's formatting), when more than ``idle_margin_s`` is left before the deadline.
+
+The clock and the sleep are parameters (``time.perf_counter`` and ``time.sleep`` by default), so
+that a test can drive a pacer with a simulated clock.
 """
 
 from __future__ import annotations
 
 import time
+from typing import Callable
+
+from ..errors import PneusimError
 
 __all__ = ["Pacing", "FastPacing", "RealtimePacing", "SleepPacing", "make_pacing", "PACING_MODES"]
 
@@ -35,8 +41,10 @@ class Pacing:
     #: spare time in s before a deadline below which :attr:`idle` is not called
     idle_margin_s = 3e-4
 
-    def __init__(self, sample_time_s: float):
+    def __init__(self, sample_time_s: float, *, clock: Callable[[], float] = time.perf_counter,
+                 sleep: Callable[[float], None] = time.sleep):
         self.sample_time_s = float(sample_time_s)
+        self.clock, self.sleep = clock, sleep
         self.t_start = 0.0
         #: work for the spare time of a paced loop (a callable, short: ~10 us), e.g. formatting the
         #: recording's rows; called by the waiting pacers when more than ``idle_margin_s`` is left
@@ -44,7 +52,7 @@ class Pacing:
 
     def start(self) -> float:
         """Set the clock's origin (deadline of sample 0) to now; returns it (perf_counter seconds)."""
-        self.t_start = time.perf_counter()
+        self.t_start = self.clock()
         return self.t_start
 
     def deadline(self, k: int) -> float:
@@ -73,18 +81,18 @@ class RealtimePacing(Pacing):
     realtime = True
     name = "realtime"
 
-    def __init__(self, sample_time_s: float, spin_s: float = 2e-4):
-        super().__init__(sample_time_s)
+    def __init__(self, sample_time_s: float, spin_s: float = 2e-4, **timers):
+        super().__init__(sample_time_s, **timers)
         self.spin_s = float(spin_s)
 
     def wait(self, k: int) -> float:
         deadline = self.t_start + k * self.sample_time_s
-        clock = time.perf_counter
+        clock = self.clock
         if self.idle is not None and deadline - clock() > self.idle_margin_s:
             self.idle()
         rest = deadline - clock() - self.spin_s
         if rest > 0:
-            time.sleep(rest)
+            self.sleep(rest)
         while clock() < deadline:
             pass
         return deadline
@@ -98,18 +106,19 @@ class SleepPacing(Pacing):
 
     def wait(self, k: int) -> float:
         deadline = self.t_start + k * self.sample_time_s
-        if self.idle is not None and deadline - time.perf_counter() > self.idle_margin_s:
+        if self.idle is not None and deadline - self.clock() > self.idle_margin_s:
             self.idle()
-        rest = deadline - time.perf_counter()
+        rest = deadline - self.clock()
         if rest > 0:
-            time.sleep(rest)
+            self.sleep(rest)
         return deadline
 
 
-def make_pacing(mode: str, sample_time_s: float) -> Pacing:
-    """``fast``, ``realtime`` or ``sleep`` (see the module docstring)."""
+def make_pacing(mode: str, sample_time_s: float, **timers) -> Pacing:
+    """``fast``, ``realtime`` or ``sleep`` (see the module docstring); ``clock`` and ``sleep`` keywords
+    replace ``time.perf_counter`` and ``time.sleep``."""
     try:
-        return {"fast": FastPacing, "realtime": RealtimePacing, "sleep": SleepPacing}[mode](sample_time_s)
+        kind = {"fast": FastPacing, "realtime": RealtimePacing, "sleep": SleepPacing}[mode]
     except KeyError:
-        from ..errors import PneusimError
         raise PneusimError(f"unknown pacing {mode!r}; expected one of {', '.join(PACING_MODES)}") from None
+    return kind(sample_time_s, **timers)

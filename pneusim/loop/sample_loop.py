@@ -1,8 +1,9 @@
-"""The sample loop of the mixed-reality environment, paced or as fast as possible.
+"""The sample loop shared by the mixed-reality environment and the scenarios' online runs, paced or as
+fast as possible.
 
 At every sample ``k`` the loop, in this order:
 
-1. waits for the deadline of sample ``k`` (:mod:`pneusim.mre.clock`; no wait in fast mode);
+1. waits for the deadline of sample ``k`` (:mod:`pneusim.loop.pacing`; no wait in fast mode);
 2. **measures**: ``plant.measure()``;
 3. **identifies**: each online estimator predicts ``yhat(k | k-h)`` and takes ``y(k)``;
 4. **controls**: the controller turns reference and measured position into ``u(k)``;
@@ -28,17 +29,17 @@ flushed and closed, and :class:`LoopResult` holds everything taken so far.
 from __future__ import annotations
 
 import gc
-import math
-import sys
-import time
 from dataclasses import dataclass, field
 from typing import Callable, Mapping
 
 import numpy as np
 
-from .clock import FastPacing, Pacing
+from ..errors import PneusimError
+from .pacing import FastPacing, Pacing
+from .status import StatusLine
 
-__all__ = ["run_loop", "LoopResult", "StatusLine", "timing_summary", "row_columns"]
+__all__ = ["run_loop", "LoopResult", "row_columns", "STOP_COMPLETED", "STOP_INTERRUPTED", "STOP_FAULT",
+           "STOP_OVERRUNS"]
 
 STOP_COMPLETED = "completed"
 STOP_INTERRUPTED = "interrupted (Ctrl-C)"
@@ -105,42 +106,6 @@ class LoopResult:
         return self.stop_reason == STOP_COMPLETED
 
 
-class StatusLine:
-    """A live one-line status on a terminal stream (samples, overruns, lateness, one-step error).
-
-    Parameters
-    ----------
-    stream : file
-        Where to write (``sys.stderr`` by default).
-    interval_s : float
-        Wall time between two updates.
-    label : str
-        First word of the line.
-    """
-
-    def __init__(self, stream=None, interval_s: float = 0.5, label: str = "mre"):
-        self.stream = stream if stream is not None else sys.stderr
-        self.label = label
-        self.interval_s = float(interval_s)
-        self.last_text = ""
-
-    def show(self, k: int, n: int, overruns: int, late_half: int, lateness_s: np.ndarray,
-             err: float, err_name: str) -> None:
-        lat = lateness_s[np.isfinite(lateness_s)]
-        timing = (f", lateness p50 {np.percentile(lat, 50) * 1e3:.3f} ms p99 {np.percentile(lat, 99) * 1e3:.3f} ms "
-                  f"max {lat.max() * 1e3:.3f} ms" if lat.size else "")
-        e = f", 1-step error ({err_name}) {err:+.4g}" if err_name else ""
-        paced = f", overruns {overruns}, late > Ts/2 {late_half}{timing}" if lat.size else ""   # none when fast
-        self.last_text = f"{self.label}: {k}/{n} samples ({100.0 * k / max(n, 1):.0f} %){paced}{e}"
-        self.stream.write("\r" + self.last_text + "   ")
-        self.stream.flush()
-
-    def close(self) -> None:
-        if self.last_text:
-            self.stream.write("\n")
-            self.stream.flush()
-
-
 def run_loop(plant, reference: np.ndarray, controller, estimators: Mapping[str, object],
              to_output: Callable[[float], float], to_input: Callable[[float, int], float], *,
              pacing: Pacing | None = None, n_warm: int = 0, writer=None,
@@ -160,10 +125,10 @@ def run_loop(plant, reference: np.ndarray, controller, estimators: Mapping[str, 
     to_output, to_input : callable
         Position (m) to the estimators' output; command (V) and sample index to their input.
     pacing : Pacing
-        :class:`~pneusim.mre.clock.FastPacing` (default), real-time or sleep pacing.
+        :class:`~pneusim.loop.pacing.FastPacing` (default), real-time or sleep pacing.
     writer : RecordingWriter or None
         Receives one row per recorded sample (see :func:`row_columns`); in a paced run its ``idle``
-        (formatting the rows) is the pacer's :attr:`~pneusim.mre.clock.Pacing.idle`, i.e. done in
+        (formatting the rows) is the pacer's :attr:`~pneusim.loop.pacing.Pacing.idle`, i.e. done in
         the wait for the next deadline, not counted in ``compute_s``.
     status : StatusLine or None
     overrun_budget : int or None
@@ -171,132 +136,195 @@ def run_loop(plant, reference: np.ndarray, controller, estimators: Mapping[str, 
     null_V : float or None
         Valve null sent by ``plant.safe_stop`` when the loop ends.
     stop_after : int or None
-        Raise a fault after this many recorded samples (used to test the fault path).
+        Raise a fault after this many recorded samples (tests of the stop path).
     """
     pacing = pacing or FastPacing(plant.sample_time_s)
-    ts = pacing.sample_time_s
-    n = int(reference.shape[0])
-    closed = controller is not None
-    # per-sample values go to Python lists (an append costs a third of a numpy item assignment);
-    # the arrays are made once at the end; thetas go straight into their (n, 2n) arrays
-    pos, cmd, pa, pb, flag = [], [], [], [], []
-    late, latency, compute = [], [], []
-    preds = {(name, h): [] for name, est in estimators.items() for h in est.horizons}
-    thetas = {name: np.full((n, est.theta.size), np.nan) for name, est in estimators.items()}
-    first_h1 = next(((name, 1) for name, est in estimators.items() if 1 in est.horizons), None)
-    plan = [_estimator_plan(name, est, preds, thetas[name]) for name, est in estimators.items()]
-    realtime = pacing.realtime
-    clock = time.perf_counter
-    half_ts = 0.5 * ts
-    nan = float("nan")
-    overruns = late_half = 0
-    done = 0
+    loop = _SampleLoop(plant, reference, controller, estimators, to_output, to_input, pacing, writer, status,
+                       overrun_budget, stop_after)
     stop, error, exception = STOP_COMPLETED, None, None
-    gc_was_enabled = gc.isenabled()
-    if realtime:
-        gc.collect()
-        gc.disable()
-    next_status = 0.0
-    win_start = 0
-    idle_before = pacing.idle
-    if realtime and writer is not None and hasattr(writer, "idle"):
-        pacing.idle = writer.idle         # rows are formatted in the wait for the next deadline
-    started = pacing.start()
-    try:
-        for j in range(n_warm + n):
-            k = j - n_warm
-            deadline = pacing.wait(j)
-            t0 = clock()
-            m = plant.measure()
-            ref = float(reference[k if k > 0 else 0])
-            if k >= 0:
-                y = to_output(m.position_m)
-                row_preds = []
-                for update, columns, _add, _log in plan:
-                    values = update(y)
-                    for col, v in zip(columns, values):
-                        col.append(v)
-                    row_preds += values
-            u = controller.command(m.t_s, ref, m.position_m) if closed else ref
-            t_cmd = clock()
-            if k < n - 1:
-                plant.step(u)
-            if k >= 0:
-                u_est = to_input(u, k)
-                for _update, _columns, add_input, log_theta in plan:
-                    add_input(u_est)
-                    log_theta(k)
-                u = float(u)
-                fl = getattr(plant, "measurement_flag", 0)
-                lat = t_cmd - t0
-                pos.append(m.position_m)
-                cmd.append(u)
-                pa.append(m.pressure_a_Pa)
-                pb.append(m.pressure_b_Pa)
-                flag.append(fl)
-                latency.append(lat)
-                if realtime:
-                    lt = t0 - deadline
-                    if lt > half_ts:
-                        late_half += 1
-                else:
-                    lt = nan
-                late.append(lt)
-                if writer is not None:
-                    row = [k * ts, ref, u] if closed else [k * ts, u]
-                    row += [m.position_m, m.pressure_a_Pa, m.pressure_b_Pa, lt, lat, float(fl)]
-                    writer.append(row + row_preds)
-                done = k + 1
-                t_end = clock()
-                compute.append(t_end - t0)
-                if realtime and t_end > deadline + ts:
-                    overruns += 1
-                    if overrun_budget is not None and overruns > overrun_budget:
-                        stop = STOP_OVERRUNS
-                        error = f"{overruns} samples overran (budget {overrun_budget})"
-                        break
-                if status is not None and t_end >= next_status:
-                    err = nan
-                    if first_h1 is not None:
-                        err = to_output(m.position_m) - preds[first_h1][k]
-                    status.show(done, n, overruns, late_half, np.array(late[win_start:done], dtype=float), err,
-                                first_h1[0] if first_h1 else "")
-                    win_start = done
-                    next_status = t_end + status.interval_s
-                if stop_after is not None and done >= stop_after:
-                    raise RuntimeError(f"fault injected after {done} samples")
-    except KeyboardInterrupt:
-        stop = STOP_INTERRUPTED
-    except Exception as exc:  # a component's fault: stop safely, keep what was taken, report it
-        stop, exception = STOP_FAULT, exc
-        error = str(exc) if _is_user_error(exc) else f"{type(exc).__name__}: {exc}"
-    finally:
-        pacing.idle = idle_before
-        if gc_was_enabled:
+    with _quiet_process(pacing, writer):
+        started = pacing.start()
+        try:
+            for j in range(n_warm + loop.n):
+                loop.sample(j - n_warm, pacing.wait(j))
+        except _OverrunBudgetExceeded as exc:
+            stop, error = STOP_OVERRUNS, str(exc)
+        except KeyboardInterrupt:
+            stop = STOP_INTERRUPTED
+        except Exception as exc:  # a component's fault: stop safely, keep what was taken, report it
+            stop, exception = STOP_FAULT, exc
+            error = str(exc) if isinstance(exc, PneusimError) else f"{type(exc).__name__}: {exc}"
+        finally:
+            wall = pacing.clock() - started
+            null_sent, error = _valve_to_null(plant, null_V, error)
+            if writer is not None:
+                writer.close()
+            if status is not None:
+                status.close()
+    return loop.result(stop, error, exception, wall, null_sent)
+
+
+class _OverrunBudgetExceeded(Exception):
+    """More samples overran than the budget allows (the loop stops; not a fault)."""
+
+
+class _quiet_process:
+    """While a paced loop runs: no garbage collection, and the writer's formatting in the pacer's idle time."""
+
+    def __init__(self, pacing: Pacing, writer):
+        self.pacing, self.writer = pacing, writer
+
+    def __enter__(self):
+        self.idle_before = self.pacing.idle
+        self.gc_was_enabled = gc.isenabled()
+        if self.pacing.realtime:
+            gc.collect()
+            gc.disable()
+            if self.writer is not None and hasattr(self.writer, "idle"):
+                self.pacing.idle = self.writer.idle   # rows are formatted in the wait for the next deadline
+        return self
+
+    def __exit__(self, *exc):
+        self.pacing.idle = self.idle_before
+        if self.gc_was_enabled:
             gc.enable()
-        wall = clock() - started
-        null_sent = False
-        safe = getattr(plant, "safe_stop", None)
-        if safe is not None:
-            try:
-                safe(null_V)
-                null_sent = True
-            except Exception as exc:   # the plant may be the fault; say so, do not hide the first fault
-                error = (error + "; " if error else "") + f"valve to null failed: {exc}"
-        if writer is not None:
-            writer.close()
-        if status is not None:
-            status.close()
+        return False
 
-    def arr(values, dtype=float):
-        return np.array(values[:done], dtype=dtype)
 
-    return LoopResult(ts, n, pacing.name, arr(pos), arr(cmd), np.asarray(reference[:done], float).copy(),
-                      arr(pa), arr(pb), arr(flag, int),
-                      {key: arr(v) for key, v in preds.items()},
-                      {key: v[:done].copy() for key, v in thetas.items()},
-                      arr(late), arr(latency), arr(compute), overruns, late_half, stop, error,
-                      wall, null_sent, exception)
+def _valve_to_null(plant, null_V, error):
+    """``plant.safe_stop(null_V)`` where the plant has one; ``(sent, error)`` with a failure added to the error
+    (the plant may be the fault: say so, do not hide the first fault)."""
+    safe = getattr(plant, "safe_stop", None)
+    if safe is None:
+        return False, error
+    try:
+        safe(null_V)
+    except Exception as exc:  # noqa: BLE001 - reported, the run's result is kept
+        return False, (error + "; " if error else "") + f"valve to null failed: {exc}"
+    return True, error
+
+
+class _SampleLoop:
+    """One run's components and what it has taken so far; :meth:`sample` is one sample of the loop.
+
+    Per-sample values go to Python lists (an append costs a third of a numpy item assignment); the
+    arrays are made once at the end; thetas go straight into their (n, 2n) arrays.
+    """
+
+    def __init__(self, plant, reference, controller, estimators, to_output, to_input, pacing, writer, status,
+                 overrun_budget, stop_after):
+        self.plant, self.reference, self.controller = plant, reference, controller
+        self.to_output, self.to_input = to_output, to_input
+        self.pacing, self.writer, self.status = pacing, writer, status
+        self.overrun_budget, self.stop_after = overrun_budget, stop_after
+        self.n = n = int(reference.shape[0])
+        self.ts = pacing.sample_time_s
+        self.clock = pacing.clock
+        self.realtime = pacing.realtime
+        self.closed = controller is not None
+        self.pos, self.cmd, self.pa, self.pb, self.flag = [], [], [], [], []
+        self.late, self.latency, self.compute = [], [], []
+        self.preds = {(name, h): [] for name, est in estimators.items() for h in est.horizons}
+        self.thetas = {name: np.full((n, est.theta.size), np.nan) for name, est in estimators.items()}
+        self.first_h1 = next(((name, 1) for name, est in estimators.items() if 1 in est.horizons), None)
+        self.plan = [_estimator_plan(name, est, self.preds, self.thetas[name]) for name, est in estimators.items()]
+        self.overruns = self.late_half = self.done = 0
+        self.next_status = 0.0
+        self.win_start = 0
+
+    def sample(self, k: int, deadline: float) -> None:
+        """Sample ``k`` (negative: warm-up, nothing recorded): measure, identify, control, actuate, record."""
+        t0 = self.clock()
+        m = self.plant.measure()
+        ref = float(self.reference[k if k > 0 else 0])
+        row_preds = self.identify(m.position_m) if k >= 0 else None
+        u = self.controller.command(m.t_s, ref, m.position_m) if self.closed else ref
+        t_cmd = self.clock()
+        if k < self.n - 1:
+            self.plant.step(u)
+        if k >= 0:
+            self.learn_input(k, u)
+            self.record(k, m, ref, float(u), row_preds, t0, t_cmd, deadline)
+            self.check_timing(k, m, t0, deadline)
+
+    def identify(self, position_m: float) -> list:
+        """Each estimator predicts and takes ``y(k)``; returns the row's predictions in column order."""
+        y = self.to_output(position_m)
+        row_preds = []
+        for update, columns, _add, _log in self.plan:
+            values = update(y)
+            for col, v in zip(columns, values):
+                col.append(v)
+            row_preds += values
+        return row_preds
+
+    def learn_input(self, k: int, u) -> None:
+        """Each estimator takes the applied ``u(k)`` and logs its ``theta``."""
+        u_est = self.to_input(u, k)
+        for _update, _columns, add_input, log_theta in self.plan:
+            add_input(u_est)
+            log_theta(k)
+
+    def record(self, k: int, m, ref: float, u: float, row_preds: list, t0: float, t_cmd: float,
+               deadline: float) -> None:
+        """Keep the sample (measurement, command, lateness, latency) and write its row."""
+        fl = getattr(self.plant, "measurement_flag", 0)
+        lat = t_cmd - t0
+        self.pos.append(m.position_m)
+        self.cmd.append(u)
+        self.pa.append(m.pressure_a_Pa)
+        self.pb.append(m.pressure_b_Pa)
+        self.flag.append(fl)
+        self.latency.append(lat)
+        if self.realtime:
+            lt = t0 - deadline
+            if lt > 0.5 * self.ts:
+                self.late_half += 1
+        else:
+            lt = float("nan")
+        self.late.append(lt)
+        if self.writer is not None:
+            row = [k * self.ts, ref, u] if self.closed else [k * self.ts, u]
+            row += [m.position_m, m.pressure_a_Pa, m.pressure_b_Pa, lt, lat, float(fl)]
+            self.writer.append(row + row_preds)
+        self.done = k + 1
+
+    def check_timing(self, k: int, m, t0: float, deadline: float) -> None:
+        """The sample's computation time; count an overrun (stop past the budget), show the status, inject
+        the test fault."""
+        t_end = self.clock()
+        self.compute.append(t_end - t0)
+        if self.realtime and t_end > deadline + self.ts:
+            self.overruns += 1
+            if self.overrun_budget is not None and self.overruns > self.overrun_budget:
+                raise _OverrunBudgetExceeded(f"{self.overruns} samples overran (budget {self.overrun_budget})")
+        if self.status is not None and t_end >= self.next_status:
+            self.show_status(k, m)
+            self.next_status = t_end + self.status.interval_s
+        if self.stop_after is not None and self.done >= self.stop_after:
+            raise RuntimeError(f"fault injected after {self.done} samples")
+
+    def show_status(self, k: int, m) -> None:
+        err = float("nan")
+        if self.first_h1 is not None:
+            err = self.to_output(m.position_m) - self.preds[self.first_h1][k]
+        self.status.show(self.done, self.n, self.overruns, self.late_half,
+                         np.array(self.late[self.win_start:self.done], dtype=float), err,
+                         self.first_h1[0] if self.first_h1 else "")
+        self.win_start = self.done
+
+    def result(self, stop: str, error, exception, wall: float, null_sent: bool) -> LoopResult:
+        done = self.done
+
+        def arr(values, dtype=float):
+            return np.array(values[:done], dtype=dtype)
+
+        return LoopResult(self.ts, self.n, self.pacing.name, arr(self.pos), arr(self.cmd),
+                          np.asarray(self.reference[:done], float).copy(), arr(self.pa), arr(self.pb),
+                          arr(self.flag, int), {key: arr(v) for key, v in self.preds.items()},
+                          {key: v[:done].copy() for key, v in self.thetas.items()},
+                          arr(self.late), arr(self.latency), arr(self.compute), self.overruns, self.late_half,
+                          stop, error, wall, null_sent, exception)
 
 
 def _estimator_plan(name, est, preds, theta_log):
@@ -304,7 +332,7 @@ def _estimator_plan(name, est, preds, theta_log):
 
     ``update(y)`` returns the predictions in the order of ``est.horizons``; ``log_theta(k)`` writes
     ``theta`` into row ``k`` of ``theta_log``, without allocating for estimators with ``theta_logger``
-    (:class:`~pneusim.scenario.online.PaperRLS`), through ``est.theta`` for any other.
+    (:class:`~pneusim.online.PaperRLS`), through ``est.theta`` for any other.
     """
     unique = tuple(dict.fromkeys(est.horizons))         # a horizon given twice has one column
 
@@ -320,26 +348,7 @@ def _estimator_plan(name, est, preds, theta_log):
     return values, [preds[(name, h)] for h in unique], est.add_input, log_theta
 
 
-def _is_user_error(exc: Exception) -> bool:
-    from ..errors import PneusimError
-    return isinstance(exc, PneusimError)
-
-
 def row_columns(closed: bool, prediction_names) -> list[str]:
     """Header of the rows :func:`run_loop` writes: the recording's signals, the timing, the predictions."""
     return (["time_s"] + (["reference_m"] if closed else []) + ["valve_cmd_V", "position_m", "pressure_a_Pa",
             "pressure_b_Pa", "lateness_s", "latency_s", "plant_flag"] + list(prediction_names))
-
-
-def timing_summary(result: LoopResult) -> dict:
-    """Lateness p50/p99/max, overruns and computation per sample of a run, in s and counts."""
-    ts, n = result.sample_time_s, result.n_samples
-    out = {"samples": n, "pacing": result.pacing, "sample_time_s": ts, "overruns": result.overruns,
-           "late_half_sample": result.late_half,
-           "late_half_sample_percent": 100.0 * result.late_half / n if n else math.nan}
-    for name, arr in (("lateness_s", result.lateness_s), ("latency_s", result.latency_s),
-                      ("compute_s", result.compute_s)):
-        a = arr[np.isfinite(arr)] if arr is not None else np.empty(0)
-        out[name] = ({"p50": float(np.percentile(a, 50)), "p99": float(np.percentile(a, 99)),
-                      "max": float(a.max()), "mean": float(a.mean())} if a.size else None)
-    return out

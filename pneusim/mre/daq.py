@@ -34,14 +34,13 @@ NI's driver; our tests replace the ``nidaqmx`` calls by fakes.
 from __future__ import annotations
 
 import importlib
-import json
 import math
 from dataclasses import dataclass
 
 from ..errors import InputFileError, PneusimError
 from ..plant import Measurement
 
-__all__ = ["DaqConfig", "DaqPlant", "parse_daq_section", "TERMINAL_CONFIGS", "import_nidaqmx"]
+__all__ = ["DaqConfig", "DaqPlant", "daq_config", "parse_daq_section", "TERMINAL_CONFIGS", "import_nidaqmx"]
 
 TERMINAL_CONFIGS = ("DEFAULT", "RSE", "NRSE", "DIFF", "PSEUDO_DIFF")
 _STR = ("valve_channel", "position_channel", "pressure_a_channel", "pressure_b_channel", "terminal_config")
@@ -85,24 +84,6 @@ class DaqConfig:
     def pressure_Pa(self, volts: float) -> float:
         """Transducer volts to absolute pressure, Pa."""
         return self.pressure_offset_Pa + volts * self.pressure_Pa_per_V
-
-    def to_toml_lines(self) -> list[str]:
-        """The ``[daq]`` section as rig-file lines (what :func:`parse_daq_section` reads back)."""
-        keys = ["valve_channel", "valve_range_V", "position_channel", "position_range_V", "position_V_per_m",
-                "position_offset_V", "terminal_config", "timeout_s"]
-        if self.has_pressures:
-            keys += ["pressure_a_channel", "pressure_b_channel", "pressure_range_V", "pressure_Pa_per_V",
-                     "pressure_offset_Pa"]
-        out = ["[daq]"]
-        for key in keys:
-            v = getattr(self, key)
-            if isinstance(v, str):
-                out.append(f"{key} = {json.dumps(v)}")       # a JSON string is a TOML basic string
-            elif isinstance(v, tuple):
-                out.append(f"{key} = [{v[0]!r}, {v[1]!r}]")
-            else:
-                out.append(f"{key} = {v!r}")
-        return out
 
 
 def parse_daq_section(table, path, known: dict | None = None) -> DaqConfig:
@@ -172,6 +153,19 @@ def parse_daq_section(table, path, known: dict | None = None) -> DaqConfig:
     return DaqConfig(**out)
 
 
+def daq_config(rig) -> DaqConfig | None:
+    """The rig's ``[daq]`` table checked against its parameters, or ``None`` when the rig file has none.
+
+    Raises
+    ------
+    InputFileError
+        Naming the rig file and ``daq.KEY`` (see :func:`parse_daq_section`).
+    """
+    if rig.daq is None:
+        return None
+    return parse_daq_section(rig.daq, rig.source or rig.name, dict(rig.params))
+
+
 def import_nidaqmx():
     """``(nidaqmx, nidaqmx.constants)``, or one clear line saying how to install them."""
     try:
@@ -186,7 +180,7 @@ class DaqPlant:
     Parameters
     ----------
     rig : Rig
-        Its ``daq`` attribute (the ``[daq]`` section) gives the channels and conversions.
+        Its ``[daq]`` section (:func:`daq_config`) gives the channels and conversions.
     modules : (nidaqmx, nidaqmx.constants) or None
         The API; ``None`` imports it (tests pass fakes).
 
@@ -199,11 +193,12 @@ class DaqPlant:
     """
 
     def __init__(self, rig, modules=None):
-        if rig.daq is None:
+        config = daq_config(rig)
+        if config is None:
             raise PneusimError(f"rig {rig.name!r} ({rig.source or 'shipped'}): the nidaqmx plant needs a [daq] "
                                "section in the rig file (channels, ranges, volts per metre)")
         self.rig = rig
-        self.config: DaqConfig = rig.daq
+        self.config: DaqConfig = config
         self.sample_time_s = rig.sample_time_s
         self.nidaqmx, self.constants = modules if modules is not None else import_nidaqmx()
         self.null_V = float(rig.params["valve_null_V"])

@@ -77,6 +77,15 @@ def _errno_text() -> str:
 class RealtimeScope:
     """Context manager applying :class:`RealtimeSettings` to the calling thread (process for memory).
 
+    Parameters
+    ----------
+    settings : RealtimeSettings or None
+        None: nothing changed.
+    label : str
+        First word of the notices.
+    system : module
+        Where the scheduling calls come from (``os``; a test passes one that refuses).
+
     Attributes
     ----------
     applied : list of str
@@ -85,9 +94,10 @@ class RealtimeScope:
         One line per setting the system refused (and what the run does instead).
     """
 
-    def __init__(self, settings: RealtimeSettings | None, label: str = "mre"):
+    def __init__(self, settings: RealtimeSettings | None, label: str = "mre", system=os):
         self.settings = settings or RealtimeSettings.off()
         self.label = label
+        self.system = system
         self.applied: list[str] = []
         self.notices: list[str] = []
         self._undo: list = []
@@ -109,32 +119,34 @@ class RealtimeScope:
         return self
 
     def _fifo(self, priority: int) -> None:
-        if not hasattr(os, "sched_setscheduler"):
+        system = self.system
+        if not hasattr(system, "sched_setscheduler"):
             self._notice("SCHED_FIFO", "not Linux", "normal scheduling")
             return
         try:
-            old_policy, old_param = os.sched_getscheduler(0), os.sched_getparam(0)
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+            old_policy, old_param = system.sched_getscheduler(0), system.sched_getparam(0)
+            system.sched_setscheduler(0, system.SCHED_FIFO, system.sched_param(priority))
         except (OSError, ValueError) as exc:
             self._notice(f"SCHED_FIFO priority {priority}", getattr(exc, "strerror", None) or str(exc),
                          "normal scheduling: expect more lateness under load")
             return
         self.applied.append(f"SCHED_FIFO {priority}")
-        self._undo.append(lambda: os.sched_setscheduler(0, old_policy, old_param))
+        self._undo.append(lambda: system.sched_setscheduler(0, old_policy, old_param))
 
     def _pin(self, cpu: int) -> None:
-        if not hasattr(os, "sched_setaffinity"):
+        system = self.system
+        if not hasattr(system, "sched_setaffinity"):
             self._notice(f"pinning to CPU {cpu}", "not Linux", "the thread may migrate")
             return
         try:
-            old = os.sched_getaffinity(0)
-            os.sched_setaffinity(0, {cpu})
+            old = system.sched_getaffinity(0)
+            system.sched_setaffinity(0, {cpu})
         except (OSError, ValueError) as exc:
             self._notice(f"pinning to CPU {cpu}", getattr(exc, "strerror", None) or str(exc),
                          "the thread may migrate")
             return
         self.applied.append(f"CPU {cpu}")
-        self._undo.append(lambda: os.sched_setaffinity(0, old))
+        self._undo.append(lambda: system.sched_setaffinity(0, old))
 
     def _lock(self, libc) -> None:
         if libc is None or not hasattr(libc, "mlockall"):

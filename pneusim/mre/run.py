@@ -20,14 +20,19 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
 from ..errors import PneusimError
-from .clock import make_pacing
-from .loop import LoopResult, StatusLine, row_columns, run_loop, timing_summary
+from ..loop import LoopResult, StatusLine, make_pacing, row_columns, run_loop, timing_summary
+from ..metrics import error_stats
+from ..plant import SimulatedPlant
+from ..recording import read_recording
+from ..version import __version__
+from .daq import DaqPlant
 from .plants import ReplayPlant, parse_plant
 from .recorder import RecordingWriter
+from .report import write_report
 from .rt import RealtimeScope, RealtimeSettings
-from .scenario import build_components
+from .scenario import Components, build_components
+from .udp import UdpPlant
 
 __all__ = ["run_mre", "MreRun", "make_plant", "prediction_column"]
 
@@ -56,22 +61,18 @@ def make_plant(choice, rig, effects, *, seed: int, noise_scale: float, mode: str
                daq_modules=None):
     """The plant of a parsed ``--plant`` choice."""
     if choice.kind == "sim":
-        from ..plant import SimulatedPlant
         return SimulatedPlant(rig, effects, seed=seed, noise_scale=noise_scale)
     if choice.kind == "replay":
-        from ..recording import read_recording
         rec = read_recording(choice.path)
         if not math.isclose(rec.sample_time_s, rig.sample_time_s, rel_tol=1e-9):
             raise PneusimError(f"--plant replay:{choice.path}: the recording's sample time {rec.sample_time_s:g} s "
                                f"differs from the rig's {rig.sample_time_s:g} s")
         return ReplayPlant(rec)
     if choice.kind == "udp":
-        from .udp import UdpPlant
         timeout = udp_reply_timeout_s
         if timeout is None:
             timeout = 0.5 * rig.sample_time_s if mode == "realtime" else 1.0
         return UdpPlant(choice.host, choice.port, rig.sample_time_s, reply_timeout_s=timeout)
-    from .daq import DaqPlant
     return DaqPlant(rig, daq_modules)
 
 
@@ -106,63 +107,91 @@ def run_mre(spec: dict, out_dir, *, plant: str | None = None, mode: str | None =
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     comp = build_components(spec, duration_s)
-    rig, ts = comp.rig, comp.rig.sample_time_s
     pl = plant_object if plant_object is not None else make_plant(
-        choice, rig, comp.effects, seed=int(m["seed"]), noise_scale=float(m["noise_scale"]), mode=mode,
+        choice, comp.rig, comp.effects, seed=int(m["seed"]), noise_scale=float(m["noise_scale"]), mode=mode,
         udp_reply_timeout_s=m["udp_reply_timeout_s"])
+    _check_replay_length(pl, choice, comp)
+    pred_keys, pred_cols = _prediction_columns(comp)
+    meta = _recording_metadata(spec, comp, mode, choice.text if plant_object is None else type(pl).__name__, pl)
+    rec_path = out / "recording.csv"
+    pacing = pacing or make_pacing(mode, comp.rig.sample_time_s)
+    scope = RealtimeScope(rt if rt is not None else RealtimeSettings()) if pacing.realtime else RealtimeScope(None)
+    res = _run_recorded(pl, comp, m, pacing, scope, rec_path, meta, row_columns(comp.controller is not None, pred_cols),
+                        status, stop_after)
+    summary = _summary(spec, res, comp, choice, pl, mode, rec_path, pred_keys, pred_cols)
+    summary["realtime_os"] = {"applied": scope.describe() if pacing.realtime else "none (fast mode)",
+                              "notices": list(scope.notices)}
+    _write_results(out, res, summary)
+    run = MreRun(res, summary, out, rec_path)
+    if report and res.n_samples >= 2:
+        write_report(run, comp, spec)
+    return run
+
+
+def _check_replay_length(plant, choice, comp: Components) -> None:
+    """A replayed recording must hold the whole run, warm-up included."""
     n = comp.reference.shape[0]
-    if isinstance(pl, ReplayPlant) and pl.remaining < n + comp.n_warm:
-        raise PneusimError(f"--plant {choice.text}: the recording holds {pl.remaining} samples, the run needs "
+    if isinstance(plant, ReplayPlant) and plant.remaining < n + comp.n_warm:
+        raise PneusimError(f"--plant {choice.text}: the recording holds {plant.remaining} samples, the run needs "
                            f"{n + comp.n_warm} (warm-up included); shorten --duration or mre.warmup_s")
-    closed = comp.controller is not None
+
+
+def _prediction_columns(comp: Components) -> tuple[list, list]:
+    """``([(estimator, h)], [CSV column])`` of every prediction, columns unique."""
     pred_keys = [(name, h) for name, est in comp.estimators.items() for h in est.horizons]
     pred_cols = [prediction_column(name, h, comp.output_unit) for name, h in pred_keys]
     if len(set(pred_cols)) != len(pred_cols):
         raise PneusimError("two identifiers give the same prediction column name; rename one")
-    meta = {"format": "pneusim-recording/1", "sample_time_s": repr(ts), "rig": rig.name,
+    return pred_keys, pred_cols
+
+
+def _recording_metadata(spec: dict, comp: Components, mode: str, plant_text: str, plant) -> dict:
+    """The recording's metadata: format, rig, loop, the run's plant and mode, the controller."""
+    m = spec["mre"]
+    closed = comp.controller is not None
+    meta = {"format": "pneusim-recording/1", "sample_time_s": repr(comp.rig.sample_time_s), "rig": comp.rig.name,
             "loop": "closed" if closed else "open",
             "description": m["title"] or m["name"],
             "generator": f"pneusim {__version__} mre", "seed": str(m["seed"]),
             "effects": ";".join(repr(e) for e in comp.effects) or "none",
-            "mre_plant": choice.text if plant_object is None else type(pl).__name__,
-            "mre_mode": mode, "mre_output_unit": comp.output_unit}
-    if getattr(pl, "open_loop", False):
+            "mre_plant": plant_text, "mre_mode": mode, "mre_output_unit": comp.output_unit}
+    if getattr(plant, "open_loop", False):
         meta["mre_plant_note"] = ("open loop: the measurements are played back from the recording; "
                                   "the loop's commands do not act on them")
     if closed:
         meta.update(comp.controller.metadata())
-    rec_path = out / "recording.csv"
-    pacing = pacing or make_pacing(mode, ts)
-    budget = None
-    if pacing.realtime:
-        budget = int(math.floor(float(m["overrun_budget"]) * n))
-    pl.reset(comp.x0_m, comp.u_init_V, t0_s=-comp.n_warm * ts)
+    return meta
+
+
+def _run_recorded(plant, comp: Components, m: dict, pacing, scope, rec_path: Path, meta: dict, columns: list,
+                  status: bool, stop_after: int | None) -> LoopResult:
+    """Reset the plant and run the loop inside the real-time ``scope``, its rows written to ``rec_path`` as it
+    runs; the writer and the plant are closed however it ends."""
+    ts = comp.rig.sample_time_s
+    budget = int(math.floor(float(m["overrun_budget"]) * comp.reference.shape[0])) if pacing.realtime else None
+    plant.reset(comp.x0_m, comp.u_init_V, t0_s=-comp.n_warm * ts)
     # on disk every 0.1 s of samples: a hard kill loses at most that
-    writer = RecordingWriter(rec_path, meta, row_columns(closed, pred_cols), flush_every=max(1, round(0.1 / ts)))
-    scope = RealtimeScope(rt if rt is not None else RealtimeSettings()) if pacing.realtime else RealtimeScope(None)
+    writer = RecordingWriter(rec_path, meta, columns, flush_every=max(1, round(0.1 / ts)))
     try:
         with scope:
-            res = run_loop(pl, comp.reference, comp.controller, comp.estimators, comp.to_output, comp.to_input,
-                           pacing=pacing, n_warm=comp.n_warm, writer=writer,
-                           status=StatusLine(interval_s=float(m["status_interval_s"])) if status else None,
-                           overrun_budget=budget, null_V=float(rig.params["valve_null_V"]), stop_after=stop_after)
+            return run_loop(plant, comp.reference, comp.controller, comp.estimators, comp.to_output, comp.to_input,
+                            pacing=pacing, n_warm=comp.n_warm, writer=writer,
+                            status=StatusLine(interval_s=float(m["status_interval_s"])) if status else None,
+                            overrun_budget=budget, null_V=float(comp.rig.params["valve_null_V"]),
+                            stop_after=stop_after)
     finally:
         writer.close()
-        close = getattr(pl, "close", None)
+        close = getattr(plant, "close", None)
         if close is not None:
             close()
-    summary = _summary(spec, res, comp, choice, pl, mode, rec_path, pred_keys, pred_cols)
-    summary["realtime_os"] = {"applied": scope.describe() if pacing.realtime else "none (fast mode)",
-                              "notices": list(scope.notices)}
-    np.savez(out / "coefficients.npz", time_s=np.arange(res.n_samples) * ts,
+
+
+def _write_results(out: Path, res: LoopResult, summary: dict) -> None:
+    """``coefficients.npz`` (every estimator's theta after every sample, the timing) and ``summary.json``."""
+    np.savez(out / "coefficients.npz", time_s=np.arange(res.n_samples) * res.sample_time_s,
              lateness_s=res.lateness_s, latency_s=res.latency_s, compute_s=res.compute_s,
              **{f"theta_{slug(name)}": th for name, th in res.thetas.items()})
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default) + "\n", encoding="utf-8")
-    run = MreRun(res, summary, out, rec_path)
-    if report and res.n_samples >= 2:
-        from .report import write_report
-        write_report(run, comp, spec)
-    return run
 
 
 def _json_default(x):
@@ -204,8 +233,6 @@ def transfer_function_text(a, b) -> str:
 
 
 def _summary(spec, res: LoopResult, comp, choice, plant, mode, rec_path, pred_keys, pred_cols) -> dict:
-    from ..scenario.identify import error_stats
-
     y = comp.to_output(res.position_m)
     preds = {}
     for (name, h), col in zip(pred_keys, pred_cols):

@@ -25,9 +25,17 @@ from pathlib import Path
 
 import numpy as np
 
+from ..controller import PIDController, ProportionalController
 from ..errors import InputFileError, PneusimError
 from ..experiment import MAX_SAMPLES
+from ..online import PaperRLS, SysidRLS
+from ..rig import load_rig
+from ..signals import OUTPUT_UNITS, build_signal, output_scale, sensor_gain, validate_signal
+from ..simulate import merged_effects
+from ..tomlcheck import fail
 from ..tomlfile import read_toml
+from .daq import daq_config
+from .plants import PLANT_KINDS, parse_plant
 
 __all__ = ["load_mre", "validate_mre", "MRE_MODES", "Components", "build_components", "build_controller",
            "build_reference", "build_estimators"]
@@ -55,29 +63,25 @@ IDENT_KINDS = ("rls", "recursive_arx")
 CONTROLLER_KINDS = ("proportional", "pid", "none")
 
 
-def _fail(where, key, message):
-    raise InputFileError(message, path=where, field=key)
-
-
 def _typed(where, key, value, types):
     allowed = types if isinstance(types, tuple) else (types,)
     if (isinstance(value, bool) and bool not in allowed) or not isinstance(value, allowed):
         names = {int: "an integer", str: "a string", list: "a list", dict: "a table"}
-        _fail(where, key, f"expected {'a number' if types == _NUM else names.get(types, str(types))}, got {value!r}")
+        fail(where, key, f"expected {'a number' if types == _NUM else names.get(types, str(types))}, got {value!r}")
     if types == _NUM and not math.isfinite(value):
-        _fail(where, key, f"expected a finite number, got {value!r}")
+        fail(where, key, f"expected a finite number, got {value!r}")
 
 
 def _table(where, prefix, given, spec):
     if not isinstance(given, dict):
-        _fail(where, prefix, "expected a table")
+        fail(where, prefix, "expected a table")
     for key in sorted(set(given) - set(spec)):
-        _fail(where, f"{prefix}.{key}", f"unknown key; expected one of {', '.join(spec)}")
+        fail(where, f"{prefix}.{key}", f"unknown key; expected one of {', '.join(spec)}")
     out = {}
     for key, (types, required, default) in spec.items():
         if key not in given:
             if required:
-                _fail(where, f"{prefix}.{key}", "required key missing")
+                fail(where, f"{prefix}.{key}", "required key missing")
             out[key] = copy.deepcopy(default)
             continue
         _typed(where, f"{prefix}.{key}", given[key], types)
@@ -100,86 +104,99 @@ def load_mre(path) -> dict:
 
 def validate_mre(data: dict, where: str = "MRE file") -> dict:
     """Check every table and key of an MRE dict (see the module docstring)."""
-    from ..scenario.schema import _validate_signal
-
     allowed = set(_TABLES) | {"reference", "identifiers"}
     for key in sorted(set(data) - allowed):
-        _fail(where, key, f"unknown table; expected one of {', '.join(sorted(allowed))}")
+        fail(where, key, f"unknown table; expected one of {', '.join(sorted(allowed))}")
     for key in ("mre", "rig", "controller", "reference"):
         if key not in data:
-            _fail(where, key, "required table missing")
+            fail(where, key, "required table missing")
     out = {name: _table(where, name, data.get(name, {}), spec) for name, spec in _TABLES.items()}
-    m = out["mre"]
+    _check_run(where, out["mre"])
+    for i, eff in enumerate(out["rig"]["effects"]):
+        if not isinstance(eff, str):
+            fail(where, f"rig.effects[{i}]", f"expected an effect text NAME[:PARAM=VALUE,...], got {eff!r}")
+    _check_controller(where, out["controller"], data["controller"])
+    out["reference"] = _checked_reference(where, data["reference"], out["controller"]["kind"])
+    d = out["data"]
+    if d["output_unit"] not in OUTPUT_UNITS:
+        fail(where, "data.output_unit", f"expected one of {', '.join(OUTPUT_UNITS)}, got {d['output_unit']!r}")
+    out["identifiers"] = _checked_identifiers(where, data.get("identifiers", []))
+    return out
+
+
+def _check_run(where, m: dict) -> None:
+    """The ``[mre]`` table's values: mode, plant, times, seed, noise, overrun budget."""
     if m["mode"] not in MRE_MODES:
-        _fail(where, "mre.mode", f"expected one of {', '.join(MRE_MODES)}, got {m['mode']!r}")
-    from .plants import PLANT_KINDS, parse_plant
+        fail(where, "mre.mode", f"expected one of {', '.join(MRE_MODES)}, got {m['mode']!r}")
     try:
         parse_plant(m["plant"])
     except PneusimError:
-        _fail(where, "mre.plant", f"expected one of {', '.join(PLANT_KINDS)}, got {m['plant']!r}")
+        fail(where, "mre.plant", f"expected one of {', '.join(PLANT_KINDS)}, got {m['plant']!r}")
     for key in ("duration_s", "status_interval_s"):
         if not m[key] > 0:
-            _fail(where, f"mre.{key}", f"expected a positive time in s, got {m[key]!r}")
+            fail(where, f"mre.{key}", f"expected a positive time in s, got {m[key]!r}")
     for key in ("warmup_s", "noise_scale", "seed"):
         if m[key] < 0:
-            _fail(where, f"mre.{key}", f"expected a number >= 0, got {m[key]!r}")
+            fail(where, f"mre.{key}", f"expected a number >= 0, got {m[key]!r}")
     if not 0 <= m["overrun_budget"] <= 1:
-        _fail(where, "mre.overrun_budget", f"expected a fraction of samples in [0, 1], got {m['overrun_budget']!r}")
+        fail(where, "mre.overrun_budget", f"expected a fraction of samples in [0, 1], got {m['overrun_budget']!r}")
     if m["udp_reply_timeout_s"] is not None and not m["udp_reply_timeout_s"] > 0:
-        _fail(where, "mre.udp_reply_timeout_s", f"expected a positive time in s, got {m['udp_reply_timeout_s']!r}")
-    for i, eff in enumerate(out["rig"]["effects"]):
-        if not isinstance(eff, str):
-            _fail(where, f"rig.effects[{i}]", f"expected an effect text NAME[:PARAM=VALUE,...], got {eff!r}")
-    c = out["controller"]
+        fail(where, "mre.udp_reply_timeout_s", f"expected a positive time in s, got {m['udp_reply_timeout_s']!r}")
+
+
+def _check_controller(where, c: dict, given: dict) -> None:
+    """The ``[controller]`` table: its kind and the gains that kind takes (``given``: the table as written)."""
     if c["kind"] not in CONTROLLER_KINDS:
-        _fail(where, "controller.kind", f"expected one of {', '.join(CONTROLLER_KINDS)}, got {c['kind']!r}")
+        fail(where, "controller.kind", f"expected one of {', '.join(CONTROLLER_KINDS)}, got {c['kind']!r}")
     if c["kind"] != "none":
         if c["kp_V_per_m"] is None:
-            _fail(where, "controller.kp_V_per_m", "required key missing")
+            fail(where, "controller.kp_V_per_m", "required key missing")
         if not c["kp_V_per_m"] > 0:
-            _fail(where, "controller.kp_V_per_m", f"expected a positive gain in V/m, got {c['kp_V_per_m']!r}")
+            fail(where, "controller.kp_V_per_m", f"expected a positive gain in V/m, got {c['kp_V_per_m']!r}")
     if c["kind"] == "proportional":
         for key in ("ki_V_per_m_s", "kd_V_s_per_m", "derivative_filter_s"):
-            if key in data["controller"]:
-                _fail(where, f"controller.{key}", "only for kind = 'pid'")
+            if key in given:
+                fail(where, f"controller.{key}", "only for kind = 'pid'")
     for key in ("ki_V_per_m_s", "kd_V_s_per_m", "derivative_filter_s"):
         if c[key] < 0:
-            _fail(where, f"controller.{key}", f"expected a number >= 0, got {c[key]!r}")
-    ref = copy.deepcopy(data["reference"])
+            fail(where, f"controller.{key}", f"expected a number >= 0, got {c[key]!r}")
+
+
+def _checked_reference(where, given, controller_kind: str) -> dict:
+    """The ``[reference]`` table, a signal (:func:`pneusim.signals.validate_signal`); in open loop a valve command."""
+    ref = copy.deepcopy(given)
     if not isinstance(ref, dict):
-        _fail(where, "reference", "expected a table")
-    _validate_signal(where, ref, "reference")
-    if c["kind"] == "none" and ref.get("unit", "native") != "native":
-        _fail(where, "reference.unit", "open loop (controller.kind = 'none'): the reference is the valve command "
-                                       "in V; expected unit = 'native'")
-    out["reference"] = ref
-    d = out["data"]
-    from ..scenario.schema import OUTPUT_UNITS
-    if d["output_unit"] not in OUTPUT_UNITS:
-        _fail(where, "data.output_unit", f"expected one of {', '.join(OUTPUT_UNITS)}, got {d['output_unit']!r}")
-    idents = data.get("identifiers", [])
+        fail(where, "reference", "expected a table")
+    validate_signal(where, ref, "reference")
+    if controller_kind == "none" and ref.get("unit", "native") != "native":
+        fail(where, "reference.unit", "open loop (controller.kind = 'none'): the reference is the valve command "
+                                      "in V; expected unit = 'native'")
+    return ref
+
+
+def _checked_identifiers(where, idents) -> list[dict]:
+    """The ``[[identifiers]]`` tables: kind, order, forgetting, covariance, horizons, unique names."""
     if not isinstance(idents, list):
-        _fail(where, "identifiers", "expected [[identifiers]] tables")
-    out["identifiers"] = []
-    names = set()
+        fail(where, "identifiers", "expected [[identifiers]] tables")
+    out, names = [], set()
     for i, ident in enumerate(idents):
         prefix = f"identifiers[{i}]"
         it = _table(where, prefix, ident, _IDENT)
         if it["kind"] not in IDENT_KINDS:
-            _fail(where, f"{prefix}.kind", f"expected one of {', '.join(IDENT_KINDS)}, got {it['kind']!r}")
+            fail(where, f"{prefix}.kind", f"expected one of {', '.join(IDENT_KINDS)}, got {it['kind']!r}")
         if not 1 <= it["order"] <= 20:
-            _fail(where, f"{prefix}.order", f"expected an order in 1..20, got {it['order']!r}")
+            fail(where, f"{prefix}.order", f"expected an order in 1..20, got {it['order']!r}")
         if not 0 < it["forgetting"] <= 1:
-            _fail(where, f"{prefix}.forgetting", f"expected a forgetting factor in (0, 1], got {it['forgetting']!r}")
+            fail(where, f"{prefix}.forgetting", f"expected a forgetting factor in (0, 1], got {it['forgetting']!r}")
         if not it["initial_covariance"] > 0:
-            _fail(where, f"{prefix}.initial_covariance", f"expected a number > 0, got {it['initial_covariance']!r}")
+            fail(where, f"{prefix}.initial_covariance", f"expected a number > 0, got {it['initial_covariance']!r}")
         h = it["horizons"]
         if not h or not all(isinstance(x, int) and not isinstance(x, bool) and x >= 1 for x in h):
-            _fail(where, f"{prefix}.horizons", f"expected a non-empty list of whole numbers >= 1, got {h!r}")
+            fail(where, f"{prefix}.horizons", f"expected a non-empty list of whole numbers >= 1, got {h!r}")
         if it["name"] in names:
-            _fail(where, f"{prefix}.name", f"identifier name {it['name']!r} used twice")
+            fail(where, f"{prefix}.name", f"identifier name {it['name']!r} used twice")
         names.add(it["name"])
-        out["identifiers"].append(it)
+        out.append(it)
     return out
 
 
@@ -202,8 +219,6 @@ class Components:
 
 def build_controller(c: dict, rig):
     """The controller of a checked ``[controller]`` table (``None`` for open loop)."""
-    from ..controller import PIDController, ProportionalController
-
     if c["kind"] == "none":
         return None
     p = rig.params
@@ -218,8 +233,6 @@ def build_controller(c: dict, rig):
 
 def build_reference(spec: dict, rig, n: int, seed: int, closed: bool) -> np.ndarray:
     """The reference (m closed loop, V open loop), shape (n,)."""
-    from ..scenario.signals import build_signal, sensor_gain
-
     raw = build_signal(spec, n, rig.sample_time_s, seed)
     if closed and spec.get("unit") == "sensor_V":
         return raw / sensor_gain(rig)
@@ -229,8 +242,6 @@ def build_reference(spec: dict, rig, n: int, seed: int, closed: bool) -> np.ndar
 def build_estimators(idents: list[dict]) -> dict:
     """``{name: estimator}``: ``rls`` is paper 1's eq. 8 (:class:`PaperRLS`), ``recursive_arx`` runs
     :class:`sysid.RecursiveARX` ``([n, n, 1])`` inside the loop."""
-    from ..scenario.online import PaperRLS, SysidRLS
-
     out = {}
     for it in idents:
         cls = PaperRLS if it["kind"] == "rls" else SysidRLS
@@ -240,12 +251,9 @@ def build_estimators(idents: list[dict]) -> dict:
 
 def build_components(spec: dict, duration_s: float | None = None) -> Components:
     """Everything the loop needs from a checked MRE dict (``duration_s`` overrides ``mre.duration_s``)."""
-    from ..rig import load_rig
-    from ..scenario.runner import merged_effects
-    from ..scenario.signals import OUTPUT_SCALE, sensor_gain
-
     m = spec["mre"]
     rig = load_rig(spec["rig"]["name"])
+    daq_config(rig)                        # a bad [daq] section is refused whatever the plant
     if spec["rig"]["overrides"]:
         rig = rig.with_params(spec["rig"]["overrides"], origin="rig.overrides")
     effects = merged_effects(rig, spec["rig"]["effects"])
@@ -262,7 +270,7 @@ def build_components(spec: dict, duration_s: float | None = None) -> Components:
     ref = build_reference(spec["reference"], rig, n, int(m["seed"]), closed)
     d = spec["data"]
     unit = d["output_unit"]
-    scale = sensor_gain(rig) if unit == "sensor_V" else OUTPUT_SCALE[unit]
+    scale = output_scale(rig, unit)
     y_off, u_off = float(d["output_offset"]), float(d["input_offset"])
     x0 = m["initial_position_m"]
     if x0 is None:

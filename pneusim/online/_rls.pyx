@@ -2,7 +2,7 @@
 # distutils: extra_compile_args = -ffp-contract=off
 """Paper 1's RLS (eq. 8) and its h-step predictions in C, for a 1 ms loop.
 
-:class:`RlsKernel` holds everything :class:`pneusim.scenario.online.PaperRLS`
+:class:`RlsKernel` holds everything :class:`pneusim.online.PaperRLS`
 needs per sample in C arrays: ``theta`` (2n), ``P`` (2n x 2n, row-major), the
 last ``n + hmax`` outputs and inputs and the last ``hmax`` values of ``theta``
 (ring buffers), so that one sample of an order-5 estimator with 1/5/10-step
@@ -11,7 +11,7 @@ arrays cost in call overhead.  The arithmetic is the numpy reference's, written
 out: ``Ppsi = P psi``, ``denom = lambda + psi' Ppsi``, ``theta += Ppsi (y -
 psi' theta) / denom``, ``P = (P - Ppsi Ppsi' / denom) / lambda``, every dot
 product summed left to right: the same doubles as eq. 8 written in plain Python
-floats (``tests/pneusim/test_mre_rls.py``).  numpy's BLAS sums in another order,
+floats (``tests/pneusim/online/test_rls.py``).  numpy's BLAS sums in another order,
 which RLS on paper 1's data amplifies to ~1e-10 of theta (as much as a one-ulp
 change of the data does).
 

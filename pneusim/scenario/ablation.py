@@ -40,6 +40,10 @@ import numpy as np
 
 from ..errors import InputFileError, PneusimError
 from ..model import EFFECTS, make_effect
+from ..rig import load_rig
+from ..runid import run_id
+from ..simulate import rig_effects
+from .figures import pyplot
 from .schema import set_dotted, validate_scenario
 
 __all__ = ["prepare_ablation", "write_ablation_report", "ablation_matrix", "LEVELS", "PHYSICAL_NOMINAL",
@@ -67,9 +71,50 @@ def prepare_ablation(sweep: dict, table: dict, path) -> dict:
 
     ``sweep['ablation']`` keeps the parsed table with ``labels``: ``{run_id: case}`` for the report.
     """
-    from .sweep import run_id
-
     path = str(path)
+    metric, phys_levels, phys_dur = _check_options(table, path)
+    spec = copy.deepcopy(sweep["scenario"])
+    idents = spec["identifiers"]
+    scored = [i for i, ident in enumerate(idents) if ident["kind"] in _SCORED]
+    own_physical = [i for i, ident in enumerate(idents) if ident["kind"] == "physical_fit"]
+    idents.append({"name": PHYSICAL_NOMINAL, "kind": "physical_fit", "model_effects": "none", "enabled": False,
+                   "fit_starts": 1, "note": "the nominal model fitted to data that contain the effect"})
+    idents.append({"name": PHYSICAL_EFFECT, "kind": "physical_fit", "model_effects": "scenario", "enabled": False,
+                   "fit_starts": 1, "note": "the model with the effect switched on, its parameters fitted"})
+    i_nom, i_eff = len(idents) - 2, len(idents) - 1
+    spec = validate_scenario(spec, where=path)
+    base = dict(sweep["base"])
+    for i in own_physical:
+        base[f"identifiers.{i}.enabled"] = False
+    cases = _Cases(idents, phys_dur)
+    ref_phys = [i_nom] if phys_levels else None       # no physical levels: no physical fit at all
+    cases.add({"row": "ideal rig", "group": "reference", "effect": "", "level": "", "source": "the rig file, sensor "
+               "noise only"}, [], physical=ref_phys)
+    _add_effect_cases(cases, table.get("cases", []), path, phys_levels, [i_nom, i_eff])
+    _add_combinations(cases, table.get("combinations", []), path, ref_phys)
+    if table.get("realistic_rig") is not None:
+        _add_realistic_rig(cases, table["realistic_rig"], path, ref_phys)
+    # check every point against the scenario now (a bad effect names the ablation file, before any run)
+    for case, point in cases.items:
+        trial = copy.deepcopy(spec)
+        for key, value in {**base, **point}.items():
+            set_dotted(trial, key, value, where=path)
+        validate_scenario(trial, where=f"{path} ({case['row']}, {case['part']})")
+    sweep = dict(sweep, scenario=spec, base=base, points=list(sweep.get("points", [])) + [p for _, p in cases.items])
+    labels = {run_id(point, seed): case for case, point in cases.items for seed in sweep["seeds"]}
+    scored_names = [idents[i]["name"] for i in scored if idents[i].get("enabled", True)]
+    sweep["ablation"] = {"metric": metric, "physical_levels": phys_levels, "physical_duration_s": phys_dur,
+                         "labels": labels, "rows": [c for c, _ in cases.items if c["part"] == "black-box"],
+                         "identifiers": scored_names, "kinds": {i["name"]: i["kind"] for i in idents},
+                         "published": {i["name"]: i.get("published", {}) for i in idents},
+                         "duration_s": base.get("experiment.duration_s", spec["experiment"]["duration_s"]),
+                         "scenario_name": spec["scenario"]["name"],
+                         "paper_label": table.get("paper_label", "paper")}
+    return sweep
+
+
+def _check_options(table, path: str) -> tuple:
+    """``(metric, physical_levels, physical_duration_s)`` of the ``[ablation]`` table, its keys checked."""
     if not isinstance(table, dict):
         _fail(path, "ablation", "expected a table")
     for key in sorted(set(table) - _KEYS):
@@ -84,43 +129,34 @@ def prepare_ablation(sweep: dict, table: dict, path) -> dict:
     if phys_dur is not None and (isinstance(phys_dur, bool) or not isinstance(phys_dur, (int, float))
                                  or phys_dur <= 0):
         _fail(path, "ablation.physical_duration_s", f"expected a positive duration in s, got {phys_dur!r}")
-    spec = copy.deepcopy(sweep["scenario"])
-    idents = spec["identifiers"]
-    scored = [i for i, ident in enumerate(idents) if ident["kind"] in _SCORED]
-    own_physical = [i for i, ident in enumerate(idents) if ident["kind"] == "physical_fit"]
-    idents.append({"name": PHYSICAL_NOMINAL, "kind": "physical_fit", "model_effects": "none", "enabled": False,
-                   "fit_starts": 1, "note": "the nominal model fitted to data that contain the effect"})
-    idents.append({"name": PHYSICAL_EFFECT, "kind": "physical_fit", "model_effects": "scenario", "enabled": False,
-                   "fit_starts": 1, "note": "the model with the effect switched on, its parameters fitted"})
-    i_nom, i_eff = len(idents) - 2, len(idents) - 1
-    spec = validate_scenario(spec, where=path)
-    base = dict(sweep["base"])
-    for i in own_physical:
-        base[f"identifiers.{i}.enabled"] = False
-    # the physical points: only the physical identifiers, on a shorter record
-    phys_off = {f"identifiers.{i}.enabled": False for i, ident in enumerate(idents)
-                if ident["kind"] != "physical_fit" and ident.get("enabled", True)}
-    phys_base = dict(phys_off)
-    if phys_dur is not None:
-        phys_base["experiment.duration_s"] = float(phys_dur)
+    return metric, phys_levels, phys_dur
 
-    cases = []          # (label dict, point)
 
-    def add(case, effects, physical=None, rig=None):
+class _Cases:
+    """The ablation's cases as ``(label, sweep point)`` pairs: each case's black-box point and, where asked,
+    its physical point (only the physical identifiers, on the shorter record)."""
+
+    def __init__(self, idents: list, phys_dur):
+        self.items = []
+        self.phys_base = {f"identifiers.{i}.enabled": False for i, ident in enumerate(idents)
+                          if ident["kind"] != "physical_fit" and ident.get("enabled", True)}
+        if phys_dur is not None:
+            self.phys_base["experiment.duration_s"] = float(phys_dur)
+
+    def add(self, case: dict, effects: list, physical=None, rig=None) -> None:
         point = {"rig.effects": list(effects)}
         if rig is not None:
             point["rig.name"] = rig
-        cases.append((dict(case, part="black-box"), point))
+        self.items.append((dict(case, part="black-box"), point))
         if physical:
-            p = {**point, **phys_base}
+            p = {**point, **self.phys_base}
             for i in physical:
                 p[f"identifiers.{i}.enabled"] = True
-            cases.append((dict(case, part="physical"), p))
+            self.items.append((dict(case, part="physical"), p))
 
-    ref_phys = [i_nom] if phys_levels else None       # no physical levels: no physical fit at all
-    add({"row": "ideal rig", "group": "reference", "effect": "", "level": "", "source": "the rig file, sensor "
-         "noise only"}, [], physical=ref_phys)
-    raw_cases = table.get("cases", [])
+
+def _add_effect_cases(cases: _Cases, raw_cases, path: str, phys_levels: list, physical: list) -> None:
+    """``[[ablation.cases]]``: one effect of the vocabulary at a level, its parameters and their source."""
     if not isinstance(raw_cases, list) or not raw_cases:
         _fail(path, "ablation.cases", "expected at least one [[ablation.cases]] table")
     for k, case in enumerate(raw_cases):
@@ -144,10 +180,14 @@ def prepare_ablation(sweep: dict, table: dict, path) -> dict:
         if not isinstance(case.get("source", ""), str) or not case.get("source"):
             _fail(path, f"{where}.source", "expected a string saying where the magnitude comes from")
         text = _effect_text(name, params)
-        add({"row": f"{name} ({level})", "group": name, "effect": name, "level": level, "effects": [text],
-             "source": case["source"], "params": params}, [text],
-            physical=[i_nom, i_eff] if level in phys_levels else None)
-    for k, comb in enumerate(table.get("combinations", [])):
+        cases.add({"row": f"{name} ({level})", "group": name, "effect": name, "level": level, "effects": [text],
+                   "source": case["source"], "params": params}, [text],
+                  physical=physical if level in phys_levels else None)
+
+
+def _add_combinations(cases: _Cases, combinations, path: str, physical) -> None:
+    """``[[ablation.combinations]]``: several effects at once, named."""
+    for k, comb in enumerate(combinations):
         where = f"ablation.combinations[{k}]"
         if not isinstance(comb, dict) or not isinstance(comb.get("name"), str):
             _fail(path, f"{where}.name", "expected a table with a string name")
@@ -156,44 +196,25 @@ def prepare_ablation(sweep: dict, table: dict, path) -> dict:
         effects = comb.get("effects")
         if not isinstance(effects, list) or not effects or not all(isinstance(e, str) for e in effects):
             _fail(path, f"{where}.effects", "expected a non-empty list of 'NAME:PARAM=VALUE,...' strings")
-        add({"row": comb["name"], "group": "combination", "effect": "", "level": "", "effects": effects,
-             "source": comb.get("source", "")}, effects, physical=ref_phys)
-    rig = table.get("realistic_rig")
-    if rig is not None:
-        if not isinstance(rig, str):
-            _fail(path, "ablation.realistic_rig", "expected a rig name or rig file path")
-        rig_path = rig
-        if rig.endswith(".toml") and not Path(rig).is_absolute():
-            rig_path = str((Path(path).parent / rig).resolve())
-        from ..rig import load_rig
+        cases.add({"row": comb["name"], "group": "combination", "effect": "", "level": "", "effects": effects,
+                   "source": comb.get("source", "")}, effects, physical=physical)
 
-        try:
-            rrig = load_rig(rig_path)
-        except PneusimError as exc:
-            _fail(path, "ablation.realistic_rig", str(exc))
-        add({"row": f"realistic rig ({rrig.name})", "group": "reference", "effect": "", "level": "",
-             "effects": list(rrig.effects), "source": f"{rrig.name}: every value justified in its rig file"},
-            [], physical=ref_phys, rig=rig_path)
-    # check every point against the scenario now (a bad effect names the ablation file, before any run)
-    for case, point in cases:
-        trial = copy.deepcopy(spec)
-        for key, value in {**base, **point}.items():
-            set_dotted(trial, key, value, where=path)
-        validate_scenario(trial, where=f"{path} ({case['row']}, {case['part']})")
-    sweep = dict(sweep, scenario=spec, base=base, points=list(sweep.get("points", [])) + [p for _, p in cases])
-    labels = {}
-    for case, point in cases:
-        for seed in sweep["seeds"]:
-            labels[run_id(point, seed)] = case
-    scored_names = [idents[i]["name"] for i in scored if idents[i].get("enabled", True)]
-    sweep["ablation"] = {"metric": metric, "physical_levels": phys_levels, "physical_duration_s": phys_dur,
-                         "labels": labels, "rows": [c for c, _ in cases if c["part"] == "black-box"],
-                         "identifiers": scored_names, "kinds": {i["name"]: i["kind"] for i in idents},
-                         "published": {i["name"]: i.get("published", {}) for i in idents},
-                         "duration_s": base.get("experiment.duration_s", spec["experiment"]["duration_s"]),
-                         "scenario_name": spec["scenario"]["name"],
-                         "paper_label": table.get("paper_label", "paper")}
-    return sweep
+
+def _add_realistic_rig(cases: _Cases, rig, path: str, physical) -> None:
+    """``realistic_rig``: the scenario on a rig variant file (a path relative to the ablation file)."""
+    if not isinstance(rig, str):
+        _fail(path, "ablation.realistic_rig", "expected a rig name or rig file path")
+    rig_path = rig
+    if rig.endswith(".toml") and not Path(rig).is_absolute():
+        rig_path = str((Path(path).parent / rig).resolve())
+    try:
+        rrig = load_rig(rig_path)
+        rig_effects(rrig)
+    except PneusimError as exc:
+        _fail(path, "ablation.realistic_rig", str(exc))
+    cases.add({"row": f"realistic rig ({rrig.name})", "group": "reference", "effect": "", "level": "",
+               "effects": list(rrig.effects), "source": f"{rrig.name}: every value justified in its rig file"},
+              [], physical=physical, rig=rig_path)
 
 
 def ablation_matrix(table: list[dict], ablation: dict) -> tuple[list, list, dict]:
@@ -327,11 +348,7 @@ def _findings(rows, columns, values, ab, ideal) -> list[str]:
 
 
 def _figure(path, rows, columns, values, ab):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     sq = ab["metric"] == "square_error"
     mat = np.full((len(rows), len(columns)), np.nan)
     for i, r in enumerate(rows):

@@ -7,16 +7,19 @@ from pathlib import Path
 
 import numpy as np
 
+from ..plots import plot_recording
 from .tables import unit_label
 
-__all__ = ["make_figures", "slug"]
+__all__ = ["make_figures", "slug", "pyplot"]
 
 
 def slug(text: str) -> str:
     return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-")
 
 
-def _plt():
+def pyplot():
+    """``matplotlib.pyplot`` on the Agg backend (files only), imported on first use: matplotlib takes about a
+    second to import and only reports draw."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -33,7 +36,7 @@ def _limits(y, pad=0.6):
 
 def _prediction(path, t, y, yhat, title, unit):
     """The paper's figures 5-9: actual and predicted output, and the error, over time."""
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(2, 1, sharex=True, figsize=(9, 4.6), gridspec_kw={"height_ratios": [2, 1]})
     ax[0].plot(t, y, lw=0.9, label="actual output")
     ax[0].plot(t, yhat, lw=0.8, ls="--", label="predicted output")
@@ -50,7 +53,7 @@ def _prediction(path, t, y, yhat, title, unit):
 
 def _published_z(path, t, y, pub, ours, unit):
     """Free runs of the published discrete models (and ours) on top, their one-step errors below."""
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(2, 1, sharex=True, figsize=(9, 5.6), gridspec_kw={"height_ratios": [3, 2]})
     ax[0].plot(t, y, lw=1.3, color="k", label="actual output (simulated rig)")
     for r in ours:
@@ -83,7 +86,7 @@ def _published_z(path, t, y, pub, ours, unit):
 
 def _validation(path, t, y, rows, unit):
     """Validation data with each model's simulated output, and each model's error."""
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(2, 1, sharex=True, figsize=(9, 5.4), gridspec_kw={"height_ratios": [3, 2]})
     ax[0].plot(t, y, lw=1.4, color="k", label="measured (simulated rig)")
     for i, r in enumerate(rows):
@@ -104,7 +107,7 @@ def _validation(path, t, y, rows, unit):
 
 def _published_s(path, t, y, rows, unit):
     """One panel per time-unit reading of eq. 4 against the measured output."""
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(len(rows), 1, sharex=True, figsize=(9, 1.9 * len(rows) + 0.8), squeeze=False)
     for ax, r in zip(axes[:, 0], rows):
         ax.plot(t, y, lw=1.2, color="k", label="measured")
@@ -127,8 +130,6 @@ def _published_s(path, t, y, rows, unit):
 
 def make_figures(result, out: Path) -> list[tuple[str, str]]:
     """Draw the PNG figures into ``out``; returns ``[(file name, caption)]``."""
-    from ..plots import plot_recording
-
     figs = []
     rec, unit = result.recording, unit_label(result.spec["data"]["output_unit"])
     plot_recording(rec, out / "recording.png", title=f"{result.spec['scenario']['name']}: simulated run")

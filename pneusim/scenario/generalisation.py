@@ -21,10 +21,13 @@ from __future__ import annotations
 import copy
 
 import numpy as np
+import sysid
 
+from ..metrics import error_stats
+from ..signals import build_experiment, input_signal, output_signal
 from ..simulate import simulate
-from .identify import error_stats
-from .signals import build_experiment, input_signal, output_signal
+from .figures import pyplot, slug
+from .identify import clean_row
 
 __all__ = ["evaluate_conditions", "told_rig", "generalisation_blocks"]
 
@@ -65,8 +68,6 @@ def evaluate_conditions(result, progress: bool = False) -> dict:
         "rig_overrides", "told", "n_samples", "rows": [{identifier, kind, fit_percent, mse, ...}],
         "_t", "_y", "_yhat": {identifier: array}}]}`` (private ``_`` arrays for the figures).
     """
-    import sysid
-
     spec, data = result.spec, result.spec["data"]
     rig, effects = result.rig, result.effects
     models = [r for r in result.rows if r.get("kind") in _BLACKBOX and r.get("_model") is not None]
@@ -122,8 +123,6 @@ def clean_generalisation(gen: dict | None) -> dict | None:
     """The JSON part (no arrays, NaN as None)."""
     if gen is None:
         return None
-    from .identify import clean_row
-
     return {"training": {k: (v if v is None or np.isfinite(v) else None) for k, v in gen["training"].items()},
             "conditions": [{**{k: v for k, v in c.items() if not k.startswith("_") and k != "rows"},
                             "rows": [clean_row(r) for r in c["rows"]]} for c in gen["conditions"]]}
@@ -139,8 +138,6 @@ def generalisation_blocks(result, out) -> list:
     gen = result.generalisation
     if not gen or not gen["conditions"]:
         return []
-    from .figures import _plt, slug
-
     names = list(gen["training"])
     conds = gen["conditions"]
     fits = {c["name"]: {r["identifier"]: r.get("fit_percent") for r in c["rows"] if r["status"] == "ok"}
@@ -154,56 +151,73 @@ def generalisation_blocks(result, out) -> list:
                     "(not re-identified), the physical model is told the change (a known parameter set to its "
                     "new value, a fitted one shifted by the known change) and re-runs the experiment. Fit % over "
                     "the condition's whole record; the first column is the usual validation fit on the training "
-                    "condition.")]
-    items = []
-    for c in conds:
-        what = ", ".join(f"{k} = {v:g}" for k, v in c["rig_overrides"].items())
-        told = ", ".join(f"{k} = {v:.4g}" for k, v in c.get("told", {}).items())
-        items.append(f"{c['name']}: {c['description'] or what}" + (f" (rig: {what}; physical model told {told})"
-                                                                    if what else ""))
-    blocks.append(("ul", items))
-    blocks.append(("table", (header, body)))
-    sentences = []
+                    "condition."),
+              ("ul", [_condition_item(c) for c in conds]),
+              ("table", (header, body))]
     phys = [n for n in names if any(r.get("kind") == "physical_fit" for r in result.rows if r["identifier"] == n)]
-    for c in conds:
-        f = fits[c["name"]]
-        bb = {n: v for n, v in f.items() if n not in phys and v is not None and np.isfinite(v)}
-        if not bb:
-            continue
-        drops = {n: gen["training"][n] - v for n, v in bb.items() if gen["training"].get(n) is not None}
-        worst = max(drops, key=drops.get) if drops else None
-        text = f"{c['name']}: the black-box models score {min(bb.values()):.1f}-{max(bb.values()):.1f} %"
-        if worst is not None:
-            text += f" (largest drop {drops[worst]:.1f} points, {worst})"
-        for n in phys:
-            if f.get(n) is not None:
-                text += f"; the physical model {f[n]:.1f} % (trained {_fmt(gen['training'].get(n))} %)"
-        sentences.append(text + ".")
+    sentences = [text for c in conds if (text := _condition_sentence(c["name"], fits[c["name"]], gen, phys))]
     if sentences:
         blocks.append(("ul", sentences))
-    plt = _plt()
     unit = {"sensor_V": "V"}.get(result.spec["data"]["output_unit"], result.spec["data"]["output_unit"])
     for c in conds:
         name = f"generalisation-{slug(c['name'])}.png"
-        fig, ax = plt.subplots(2, 1, sharex=True, figsize=(9, 5.2), gridspec_kw={"height_ratios": [3, 2]})
-        t, y = c["_t"], c["_y"]
-        ax[0].plot(t, y, color="k", lw=1.3, label="measured (simulated rig)")
-        for i, (n, yhat) in enumerate(c["_yhat"].items()):
-            fp = fits[c["name"]].get(n)
-            ax[0].plot(t, yhat, lw=0.8, color=f"C{i}", label=f"{n}: {_fmt(fp)} %")
-            ax[1].plot(t, y - yhat, lw=0.6, color=f"C{i}")
-        span = float(np.ptp(y)) or 1.0
-        ax[0].set_ylim(float(np.min(y)) - 0.4 * span, float(np.max(y)) + 0.4 * span)
-        ax[0].legend(fontsize=7, ncol=3, loc="upper left")
-        ax[0].set_ylabel(f"y ({unit})")
-        ax[1].set_ylabel(f"error ({unit})")
-        ax[1].set_xlabel("time (s)")
-        fig.suptitle(f"Condition '{c['name']}': models trained on the main run (fit %)", fontsize=10)
-        fig.tight_layout()
-        fig.savefig(out / name, dpi=110)
-        plt.close(fig)
+        _condition_figure(out / name, c, fits[c["name"]], unit)
         blocks.append(("fig", (name, f"Condition '{c['name']}': measured output, each trained model's output "
                                      "(top) and its error (bottom).")))
+    _summary_figure(out / "generalisation.png", names, conds, fits, gen)
+    blocks.append(("fig", ("generalisation.png", "Fit % of every model on the training condition and on each "
+                                                 "unseen condition.")))
+    return blocks
+
+
+def _condition_item(c: dict) -> str:
+    """What a condition changes, and what the physical model was told."""
+    what = ", ".join(f"{k} = {v:g}" for k, v in c["rig_overrides"].items())
+    told = ", ".join(f"{k} = {v:.4g}" for k, v in c.get("told", {}).items())
+    return f"{c['name']}: {c['description'] or what}" + (f" (rig: {what}; physical model told {told})" if what else "")
+
+
+def _condition_sentence(name: str, f: dict, gen: dict, phys: list) -> str:
+    """The black-box models' range on a condition, their largest drop, and the physical model's fit ("" when no
+    black-box model scored)."""
+    bb = {n: v for n, v in f.items() if n not in phys and v is not None and np.isfinite(v)}
+    if not bb:
+        return ""
+    drops = {n: gen["training"][n] - v for n, v in bb.items() if gen["training"].get(n) is not None}
+    worst = max(drops, key=drops.get) if drops else None
+    text = f"{name}: the black-box models score {min(bb.values()):.1f}-{max(bb.values()):.1f} %"
+    if worst is not None:
+        text += f" (largest drop {drops[worst]:.1f} points, {worst})"
+    for n in phys:
+        if f.get(n) is not None:
+            text += f"; the physical model {f[n]:.1f} % (trained {_fmt(gen['training'].get(n))} %)"
+    return text + "."
+
+
+def _condition_figure(path, c: dict, fits: dict, unit: str) -> None:
+    """A condition's measured output and each trained model's output (top), their errors (bottom)."""
+    plt = pyplot()
+    fig, ax = plt.subplots(2, 1, sharex=True, figsize=(9, 5.2), gridspec_kw={"height_ratios": [3, 2]})
+    t, y = c["_t"], c["_y"]
+    ax[0].plot(t, y, color="k", lw=1.3, label="measured (simulated rig)")
+    for i, (n, yhat) in enumerate(c["_yhat"].items()):
+        ax[0].plot(t, yhat, lw=0.8, color=f"C{i}", label=f"{n}: {_fmt(fits.get(n))} %")
+        ax[1].plot(t, y - yhat, lw=0.6, color=f"C{i}")
+    span = float(np.ptp(y)) or 1.0
+    ax[0].set_ylim(float(np.min(y)) - 0.4 * span, float(np.max(y)) + 0.4 * span)
+    ax[0].legend(fontsize=7, ncol=3, loc="upper left")
+    ax[0].set_ylabel(f"y ({unit})")
+    ax[1].set_ylabel(f"error ({unit})")
+    ax[1].set_xlabel("time (s)")
+    fig.suptitle(f"Condition '{c['name']}': models trained on the main run (fit %)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _summary_figure(path, names: list, conds: list, fits: dict, gen: dict) -> None:
+    """Fit % of every model on the training condition and on each condition, as bars."""
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(9, 4))
     labels = ["training"] + [c["name"] for c in conds]
     width = 0.8 / max(len(names), 1)
@@ -218,8 +232,5 @@ def generalisation_blocks(result, out) -> list:
     ax.legend(fontsize=7, ncol=3)
     ax.set_title("Fit per operating condition: trained once, never re-identified", fontsize=10)
     fig.tight_layout()
-    fig.savefig(out / "generalisation.png", dpi=110)
+    fig.savefig(path, dpi=110)
     plt.close(fig)
-    blocks.append(("fig", ("generalisation.png", "Fit % of every model on the training condition and on each "
-                                                 "unseen condition.")))
-    return blocks

@@ -16,33 +16,17 @@ import math
 import traceback
 
 import numpy as np
+import sysid
 from scipy import signal as sps
 
-from ..metrics import fit_percent
+from ..errors import PneusimError
+from ..fit import fit_recording
+from ..metrics import error_stats, fit_percent
+from ..simulate import rerun_recording
 from .analysis import band_behaviour, band_response, free_run, s_reading, z_properties
 
-__all__ = ["fit_percent", "error_stats", "run_blackbox", "score_published_z", "score_published_s",
-           "run_physical_fit", "not_available"]
-
-
-def error_stats(y, yhat) -> dict:
-    """Paper 1 Table 1 statistics: min, max, std of actual, predicted and error; mean square error.
-
-    ``square_error`` is the mean of ``(y - yhat)^2`` over the finite samples, in output units squared.
-    """
-    y, yhat = np.asarray(y, float), np.asarray(yhat, float)
-    ok = np.isfinite(y) & np.isfinite(yhat)
-    y, yhat = y[ok], yhat[ok]
-    if not ok.any():
-        nan = float("nan")
-        return {"n_scored": 0, **{k: nan for k in ("square_error", "mse", "rmse", "error_std", "fit_percent")},
-                **{f"{a}_{b}": nan for a in ("actual", "predicted", "error") for b in ("min", "max", "std")}}
-    e = y - yhat
-    out = {"n_scored": int(ok.sum()), "square_error": float(np.mean(e ** 2)), "mse": float(np.mean(e ** 2)),
-           "rmse": float(np.sqrt(np.mean(e ** 2))), "error_std": float(np.std(e)), "fit_percent": fit_percent(y, yhat)}
-    for name, v in (("actual", y), ("predicted", yhat), ("error", e)):
-        out.update({f"{name}_min": float(v.min()), f"{name}_max": float(v.max()), f"{name}_std": float(np.std(v))})
-    return out
+__all__ = ["run_blackbox", "score_published_z", "score_published_s", "run_physical_fit", "not_available",
+           "clean_row"]
 
 
 def not_available(ident: dict, reason: str, status: str = "not available") -> dict:
@@ -58,10 +42,6 @@ def run_blackbox(ident: dict, est: tuple, val: tuple, ts: float) -> list[dict]:
     The simulation starts from estimated initial conditions where :func:`sysid.simulate`
     offers them (MATLAB's ``compare`` default), else from zero.
     """
-    try:
-        import sysid
-    except ImportError as exc:
-        return [not_available(ident, f"sysid is not importable ({exc})")]
     fun = _SYSID_FUN[ident["kind"]]
     missing = [f for f in ("iddata", fun, "simulate") if not hasattr(sysid, f)]
     if missing:
@@ -207,10 +187,6 @@ def run_physical_fit(ident: dict, rec, n_est: int, rig, effects, to_output, val_
     simulated from the state the fit estimated at the split), estimates with standard errors, and
     the fit's identifiability warnings.
     """
-    from ..errors import PneusimError
-    from ..fit import fit_recording
-    from ..simulate import rerun_recording
-
     try:
         options = {"starts": ident["fit_starts"]} if ident.get("fit_starts") else {}
         result = fit_recording(rec, rig, effects, validation_fraction=(rec.n_samples - n_est) / rec.n_samples,

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import contextlib
 import copy
-import hashlib
 import itertools
 import json
 import math
@@ -36,7 +35,6 @@ import multiprocessing
 import os
 import time
 import tomllib
-
 import traceback
 import warnings
 from pathlib import Path
@@ -44,8 +42,17 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputFileError, PneusimError
+from ..parallel import executor_map, local_pool
+from ..plant import SimulatedPlant
+from ..rig import load_rig
+from ..runid import run_id
+from ..simulate import merged_effects
 from ..tomlfile import read_toml
+from .ablation import prepare_ablation, write_ablation_report
+from .identify import clean_row
+from .runner import run_scenario
 from .schema import load_scenario, set_dotted, validate_scenario
+from .sweep_plots import summary_plots
 
 __all__ = ["load_sweep", "expand_runs", "run_one", "run_sweep", "build_table", "write_table", "parse_set_items",
            "TABLE_METRICS"]
@@ -136,7 +143,6 @@ def load_sweep(path) -> dict:
             if exc.reason.startswith(("unknown key", "unknown table", "unknown parameter", "cannot vary")):
                 raise
     if "ablation" in data:      # an effect ablation: its cases become points (pneusim.scenario.ablation)
-        from .ablation import prepare_ablation
         sweep = prepare_ablation(sweep, data["ablation"], path)
     return sweep
 
@@ -162,11 +168,6 @@ def expand_runs(sweep: dict) -> list[tuple[dict, int]]:
     return [(p, s) for p in points for s in sweep["seeds"]]
 
 
-def run_id(params: dict, seed: int) -> str:
-    text = json.dumps({"params": params, "seed": seed}, sort_keys=True, default=str)
-    return hashlib.sha1(text.encode()).hexdigest()[:12]
-
-
 def _apply(spec, base, params, seed, where="sweep"):
     spec = copy.deepcopy(spec)
     for key, value in {**base, **params}.items():
@@ -177,9 +178,6 @@ def _apply(spec, base, params, seed, where="sweep"):
 
 def run_one(spec: dict, base: dict, params: dict, seed: int, variants: bool = False) -> dict:
     """One sweep run (picklable, for any executor): never raises; errors are recorded in the result."""
-    from .identify import clean_row
-    from .runner import run_scenario
-
     started, cpu_started = time.perf_counter(), time.process_time()
     out = {"run_id": run_id(params, seed), "params": params, "seed": seed, "rows": [], "error": None,
            "worker_pid": os.getpid()}
@@ -205,43 +203,12 @@ def _lost_run(task, exc) -> dict:
             "error": f"the worker did not return: {type(exc).__name__}: {exc}", "run_time_s": None}
 
 
-def _dask_client(dask: str, workers: int):
-    try:
-        from distributed import Client, LocalCluster
-    except ImportError as exc:
-        raise PneusimError(f"--dask needs the 'distributed' package ({exc})") from None
-    if dask == "local":
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, host="127.0.0.1", processes=True,
-                               dashboard_address=None)
-        return Client(cluster), cluster
-    try:
-        return Client(dask, timeout="15s"), None
-    except (OSError, TimeoutError, ValueError, TypeError) as exc:
-        raise PneusimError(f"--dask {dask}: no Dask scheduler answered there ({type(exc).__name__}: {exc}); "
-                           "expected tcp://HOST:PORT of a running scheduler, or 'local'") from None
-
-
-_BLAS_LIMIT = []
-
-
-def _worker_init():
-    """In each local worker process: one BLAS thread, the workers are the parallelism (BLAS threads
-    of every worker would share the same cores and spin on them)."""
-    from threadpoolctl import threadpool_limits
-
-    _BLAS_LIMIT.append(threadpool_limits(1))   # kept: the limit holds for the worker's life
-
-
 def _warm_up(task) -> None:
-    """Before local workers fork: import what a run needs and build the model of the scenario's effects with
-    its compiled kernels, here, once.  The workers fork at their first task and share all that (copy-on-write)
-    instead of each importing, building and generating it again."""
+    """Before local workers fork: build the model of the scenario's effects with its compiled kernels, here,
+    once.  The workers fork at their first task and share it (copy-on-write), as they share every module
+    imported here, instead of each building and generating it again."""
     spec, base, params, seed, _ = task
     try:
-        from ..plant import SimulatedPlant
-        from ..rig import load_rig
-        from .runner import merged_effects, run_scenario  # noqa: F401 - importing is part of the warm-up
-
         spec = _apply(spec, base, params, seed)
         rig = load_rig(spec["rig"]["name"])
         if spec["rig"]["overrides"]:
@@ -249,66 +216,6 @@ def _warm_up(task) -> None:
         SimulatedPlant(rig, merged_effects(rig, spec["rig"]["effects"]))
     except Exception:  # noqa: BLE001 - only a warm-up: the run itself reports what is wrong with it
         pass
-
-
-def _local_pool(workers: int):
-    from concurrent.futures import ProcessPoolExecutor
-
-    return ProcessPoolExecutor(max_workers=workers, initializer=_worker_init)
-
-
-def _executor_map(tasks, workers: int, dask: str | None, progress: bool, func=None, lost=None, desc: str = "sweep",
-                  pool=None):
-    """Yield the result of ``func(*task)`` (default :func:`run_one`) for every task, as they complete; a
-    worker that does not return gives ``lost(task, exc)`` (default :func:`_lost_run`) instead of stopping
-    the sweep.  ``pneusim diagnose`` runs its recordings here too.  ``pool``: a running
-    :func:`_local_pool` to use (and leave running) instead of starting one for ``workers``."""
-    func = func or run_one
-    lost = lost or _lost_run
-    bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=len(tasks), desc=desc, unit="run", mininterval=0.5)
-    try:
-        if dask:
-            from distributed import as_completed
-
-            client, cluster = _dask_client(dask, workers)
-            try:
-                futures = {client.submit(func, *t, pure=False): t for t in tasks}
-                for fut in as_completed(futures):
-                    try:
-                        yield fut.result()
-                    except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker
-                        yield lost(futures[fut], exc)
-                    if bar:
-                        bar.update()
-            finally:
-                client.close()
-                if cluster is not None:
-                    cluster.close()
-        elif workers <= 0:
-            for t in tasks:
-                yield func(*t)
-                if bar:
-                    bar.update()
-        else:
-            from concurrent.futures import as_completed as cf_completed
-
-            with contextlib.ExitStack() as stack:
-                if pool is None:
-                    pool = stack.enter_context(_local_pool(workers))
-                futures = {pool.submit(func, *t): t for t in tasks}
-                for fut in cf_completed(futures):
-                    try:
-                        yield fut.result()
-                    except Exception as exc:  # noqa: BLE001 - e.g. BrokenProcessPool
-                        yield lost(futures[fut], exc)
-                    if bar:
-                        bar.update()
-    finally:
-        if bar:
-            bar.close()
 
 
 def run_sweep(sweep: dict, out_dir, workers: int | None = None, dask: str | None = None, progress: bool = True,
@@ -343,17 +250,16 @@ def run_sweep(sweep: dict, out_dir, workers: int | None = None, dask: str | None
         workers = os.cpu_count() or 1
     local = not dask and workers > 0
     with contextlib.ExitStack() as stack:
-        pool = stack.enter_context(_local_pool(workers)) if local else None
+        pool = stack.enter_context(local_pool(workers)) if local else None
         started = time.perf_counter()
         if local and todo and multiprocessing.get_start_method() == "fork":
             _warm_up(todo[0])
-        for res in _executor_map(todo, workers, dask, progress, pool=pool):
+        for res in executor_map(run_one, todo, _lost_run, workers, dask, progress, desc="sweep", pool=pool):
             (out / "runs" / f"{res['run_id']}.json").write_text(json.dumps(res, allow_nan=False, default=str))
         wall = time.perf_counter() - started
         results = [json.loads((out / "runs" / f"{run_id(p, s)}.json").read_text()) for p, s in runs]
         table = build_table(results)
         write_table(table, out)
-        from .sweep_plots import summary_plots
         varied = list(dict.fromkeys(list(sweep["grid"]) + list(sweep["random"])
                                     + [k for p in sweep["points"] for k in p]))
         if pool is not None and workers > 1 and len(varied) > 1:
@@ -362,7 +268,6 @@ def run_sweep(sweep: dict, out_dir, workers: int | None = None, dask: str | None
         else:
             summary_plots(table, varied, out)
     if sweep.get("ablation"):
-        from .ablation import write_ablation_report
         write_ablation_report(table, sweep, out)
     return {"n_runs": len(runs), "n_done_before": len(runs) - len(todo), "n_failed": sum(bool(r["error"]) for r in results),
             "wall_time_s": wall, "runs_per_s": len(todo) / wall if todo and wall > 0 else float("nan"), "table": table}
@@ -392,6 +297,7 @@ def build_table(results: list[dict]) -> list[dict]:
 
 def write_table(table: list[dict], out_dir) -> None:
     """``sweep.csv`` and ``sweep.parquet`` (pyarrow; columns in first-seen order)."""
+    # pyarrow takes about half a second to import; only the end of a sweep writes its table
     import pyarrow as pa
     import pyarrow.csv as pacsv
     import pyarrow.parquet as pq

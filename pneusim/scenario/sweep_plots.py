@@ -5,6 +5,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from .figures import pyplot
+
 __all__ = ["summary_plots"]
 
 
@@ -13,11 +15,7 @@ def summary_plots(table: list[dict], varied: list[str], out_dir, metric: str = "
 
     Non-numeric keys (e.g. model orders) are drawn as categories.  Failed runs are left out.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     out, paths = Path(out_dir), []
     ok = [r for r in table if r.get("status") == "ok" and r.get(metric) is not None]
     for key in varied:

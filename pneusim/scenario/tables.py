@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .identify import fit_percent
+from ..metrics import fit_percent
 
 __all__ = ["layout_blocks", "rows_table", "fmt", "unit_label"]
 

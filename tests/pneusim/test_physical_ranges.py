@@ -1,4 +1,4 @@
-"""Every numeric input gets its physical range checked where it enters (issue 13's examples).
+"""Every numeric input gets its physical range checked where it enters.
 
 Rig files and ``--param`` overrides, effect parameters, scenario values, and recordings that
 their rig cannot have made: each refused in one line naming the parameter (or column) and the
@@ -7,12 +7,14 @@ range, before any simulation or fit runs.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 import pytest
 
-from pneusim.cli import main
+import pneusim.commands.fit as fit_command
+from pneusim.cli import build_parser, main, run_command
 from pneusim.errors import InputFileError, PneusimError
 from pneusim.model import make_effect
 from pneusim.plausibility import check_plausible, end_stop_time
@@ -164,17 +166,16 @@ def test_fit_refuses_implausible_recordings_before_fitting(tmp_path, capsys, cha
     assert words in err and "Traceback" not in err
 
 
-def test_fit_says_when_its_rig_differs_from_the_recordings(tmp_path, capsys, monkeypatch):
-    import pneusim.fit
-
+def test_fit_says_when_its_rig_differs_from_the_recordings(tmp_path, capsys):
     def stop(*args, **kwargs):   # the warning must come before the (minutes-long) fit starts
         raise PneusimError("stopped before fitting")
 
-    monkeypatch.setattr(pneusim.fit, "fit_recording", stop)
     path = _recording(tmp_path, rig="paper1-mre", n=200)
     rec = read_recording(path)
     assert rec.rig == "paper1-mre"
-    assert main(["fit", str(path), "--rig", "paper2-enfield"]) == 2
+    args = build_parser().parse_args(["fit", str(path), "--rig", "paper2-enfield"])
+    args.func = functools.partial(fit_command.run, fit_recording=stop)
+    assert run_command(args) == 2
     err = capsys.readouterr().err
     assert "warning: --rig paper2-enfield (paper2-enfield) differs from the rig the recording names" in err
     assert err.index("warning") < err.index("stopped before fitting")

@@ -8,7 +8,6 @@ loop's to the last bit.
 import numpy as np
 import pytest
 
-import pneusim.simulate as simulate_module
 from pneusim.controller import ProportionalController
 from pneusim.errors import SolverError
 from pneusim.experiment import standard_experiment
@@ -53,21 +52,18 @@ LOOP_CASES = {
 }
 
 
-def _run_both(monkeypatch, rig_name, kind, duration, loop, effects, noise, progress=False):
+def _run_both(rig_name, kind, duration, loop, effects, noise, progress=False):
     rig = load_rig(rig_name)
     exp = standard_experiment(rig, kind, duration, loop, seed=4)
     effects = [make_effect(name, **values) for name, values in effects]
-    runs = []
-    for compiled in (True, False):
-        monkeypatch.setattr(simulate_module, "COMPILED_LOOP", compiled)
-        runs.append(simulate(rig, exp, effects, seed=9, noise_scale=noise, progress=progress and compiled))
-    return runs
+    return [simulate(rig, exp, effects, seed=9, noise_scale=noise, progress=progress and compiled, compiled=compiled)
+            for compiled in (True, False)]
 
 
 @pytest.mark.parametrize("case", list(LOOP_CASES))
-def test_compiled_loop_gives_the_python_loops_recording_bit_for_bit(monkeypatch, case):
+def test_compiled_loop_gives_the_python_loops_recording_bit_for_bit(case):
     """The sample loop in C (built-in sensors, controller, CVODE) against the generic Python loop."""
-    fast, generic = _run_both(monkeypatch, *LOOP_CASES[case])
+    fast, generic = _run_both(*LOOP_CASES[case])
     assert np.ptp(generic.state("position_m")) > 0.01  # the run moves
     for column in ("position_m", "valve_cmd_V", "pressure_a_Pa", "pressure_b_Pa"):
         assert np.array_equal(getattr(fast.recording, column), getattr(generic.recording, column)), column
@@ -76,24 +72,19 @@ def test_compiled_loop_gives_the_python_loops_recording_bit_for_bit(monkeypatch,
     assert fast.recording.metadata == generic.recording.metadata
 
 
-def test_compiled_loop_reports_a_cvode_failure_as_the_python_loop_does(monkeypatch, rig2):
+def test_compiled_loop_reports_a_cvode_failure_as_the_python_loop_does(rig2):
     """CVODE's failure inside the C loop: the same SolverError (time, CVODE's message, state)."""
-    import pneusim.plant as plant_module
-
-    real = plant_module.make_backend
-    monkeypatch.setattr(plant_module, "make_backend", lambda *a, **kw: real(*a, max_steps=3, **kw))
     exp = standard_experiment(rig2, "multisine", 2.0, "closed", seed=1)
     messages = []
     for compiled in (True, False):
-        monkeypatch.setattr(simulate_module, "COMPILED_LOOP", compiled)
         with pytest.raises(SolverError, match=r"cvode failed at t = .*mxstep.*position_m=") as info:
-            simulate(rig2, exp, noise_scale=0)
+            simulate(rig2, exp, noise_scale=0, compiled=compiled, solver_options={"max_steps": 3})
         messages.append(str(info.value))
     assert messages[0] == messages[1]
 
 
-def test_compiled_loop_in_chunks_with_a_progress_bar_gives_the_same_run(monkeypatch):
-    fast, generic = _run_both(monkeypatch, *LOOP_CASES["paper1 closed, transport delay"], progress=True)
+def test_compiled_loop_in_chunks_with_a_progress_bar_gives_the_same_run():
+    fast, generic = _run_both(*LOOP_CASES["paper1 closed, transport delay"], progress=True)
     assert np.array_equal(fast.states, generic.states)
     assert np.array_equal(fast.recording.position_m, generic.recording.position_m)
 

@@ -1,4 +1,4 @@
-"""The command line as a new user meets it (issue 13): user mistakes end in one line and exit 2, never a
+"""The command line as a new user meets it: user mistakes end in one line and exit 2, never a
 traceback; recordings carry what made them and ``--like`` repeats it; the commands a user reaches for."""
 
 from __future__ import annotations

@@ -1,14 +1,18 @@
 """The mixed-reality environment: paced vs fast loop, stop paths, replay, PID, bad files (pneusim.mre)."""
 
 import copy
+import functools
+import io
 
 import numpy as np
 import pytest
 
-from pneusim.cli import main
+import pneusim.commands.mre as mre_command
+from pneusim.cli import build_parser, main, run_command
 from pneusim.controller import PIDController, ProportionalController
+from pneusim.loop import RealtimePacing, StatusLine, run_loop
 from pneusim.mre.run import run_mre
-from pneusim.mre.scenario import validate_mre
+from pneusim.mre.scenario import build_components, validate_mre
 from pneusim.plant import SimulatedPlant
 from pneusim.recording import read_recording
 
@@ -97,7 +101,6 @@ class _Interrupting:
 @pytest.mark.parametrize("exc", [KeyboardInterrupt(), RuntimeError("sensor cable pulled")])
 def test_ctrl_c_or_a_fault_leaves_a_complete_valid_recording(fast_run, tmp_path, exc):
     s = spec()
-    from pneusim.mre.scenario import build_components
     comp = build_components(s)
     warm = comp.n_warm
     plant = _Interrupting(SimulatedPlant(comp.rig, seed=3), warm + 121, exc)
@@ -113,13 +116,12 @@ def test_ctrl_c_or_a_fault_leaves_a_complete_valid_recording(fast_run, tmp_path,
     assert main(["check", str(tmp_path / "recording.csv")]) == 0
 
 
-def test_cli_fault_is_one_line_and_the_recording_stays(tmp_path, capsys, monkeypatch):
+def test_cli_fault_is_one_line_and_the_recording_stays(tmp_path, capsys):
     path = tmp_path / "m.toml"
     path.write_text(MRE_TEXT, encoding="utf-8")
-    import pneusim.mre.loop as loop
-    orig = loop.run_loop
-    monkeypatch.setattr("pneusim.mre.run.run_loop", lambda *a, **k: orig(*a, **{**k, "stop_after": 60}))
-    assert main(["mre", str(path), "--fast", "--out", str(tmp_path / "o"), "--no-report"]) == 2
+    args = build_parser().parse_args(["mre", str(path), "--fast", "--out", str(tmp_path / "o"), "--no-report"])
+    args.func = functools.partial(mre_command.run, run_mre=functools.partial(run_mre, stop_after=60))
+    assert run_command(args) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "60 samples taken" in err
     assert read_recording(tmp_path / "o" / "recording.csv").n_samples == 60
@@ -207,55 +209,7 @@ def test_unreachable_or_unknown_plants_give_one_clear_line(tmp_path, capsys, pla
     assert len(err.splitlines()) == 1 and words in err
 
 
-class _FakeClock:
-    """perf_counter and sleep of a machine whose sleeps overshoot by 60 us and whose clock reads cost 1 us."""
-
-    def __init__(self):
-        self.now, self.sleeps = 100.0, []
-
-    def perf_counter(self):
-        self.now += 1e-6
-        return self.now
-
-    def sleep(self, dt):
-        self.sleeps.append(dt)
-        self.now += dt + 60e-6
-
-
-@pytest.mark.parametrize("kind", ["realtime", "sleep"])
-def test_pacing_keeps_absolute_deadlines_through_a_stall(monkeypatch, kind):
-    from pneusim.mre import clock
-
-    fake = _FakeClock()
-    monkeypatch.setattr(clock.time, "perf_counter", fake.perf_counter)
-    monkeypatch.setattr(clock.time, "sleep", fake.sleep)
-    pacing = clock.make_pacing(kind, 0.001)
-    t0 = pacing.start()
-    late = []
-    for k in range(200):
-        deadline = pacing.wait(k)
-        assert deadline == t0 + k * 0.001                  # no drift: deadlines never move
-        late.append(fake.now - deadline)
-        fake.now += 200e-6                                  # the sample's work
-        if k == 50:
-            fake.now += 5.5e-3                              # one stall of 5.5 samples
-    late = np.array(late)
-    assert late.min() >= 0.0
-    if kind == "realtime":                                  # the busy wait absorbs the sleep's overshoot
-        assert late[:51].max() < 3e-6 and late[-100:].max() < 3e-6
-    else:                                                   # plain sleep wakes up late by its overshoot
-        assert late[:51].max() > 50e-6 and late[-100:].max() < 70e-6
-    # after the stall the loop runs at once until it has caught up, then waits again
-    assert late[51] > 4e-3 and late[60] < 3e-3 and late[70] < 70e-6
-
-
 def test_status_line_shows_samples_overruns_lateness_and_one_step_error():
-    import io
-
-    from pneusim.mre.clock import RealtimePacing
-    from pneusim.mre.loop import StatusLine, run_loop
-    from pneusim.mre.scenario import build_components
-
     comp = build_components(spec(duration_s=0.1))
     plant = SimulatedPlant(comp.rig, seed=3)
     plant.reset(comp.x0_m, comp.u_init_V, t0_s=0.0)

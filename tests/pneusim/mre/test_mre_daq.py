@@ -8,9 +8,12 @@ import types
 import numpy as np
 import pytest
 
+from pneusim.cli import main
+from pneusim.controller import ProportionalController
 from pneusim.errors import InputFileError, PneusimError
-from pneusim.mre.daq import DaqPlant
-from pneusim.rig import RIG_DIR, load_rig
+from pneusim.loop import run_loop
+from pneusim.mre.daq import DaqPlant, daq_config
+from pneusim.rig import RIG_DIR, load_rig, write_rig
 
 DAQ = """
 [daq]
@@ -123,9 +126,6 @@ def test_daq_plant_uses_the_channels_and_converts_exactly_as_the_rig_file_says(t
 def test_daq_plant_in_the_loop(tmp_path):
     """A closed loop through the fake card: the command the card gets is the controller's law on the
     position the card's volts mean."""
-    from pneusim.controller import ProportionalController
-    from pneusim.mre.loop import run_loop
-
     rig = load_rig(_rig_file(tmp_path, DAQ.replace("pressure_a_channel", "#").replace("pressure_b_channel", "#")))
     fake = _Fake({"cDAQ1Mod1/ai3": 0.5})
     plant = DaqPlant(rig, (fake.module, fake.constants))
@@ -150,9 +150,9 @@ def test_missing_nidaqmx_is_one_clear_line(monkeypatch):
 
 
 def test_shipped_paper1_rig_has_the_example_daq_section():
-    d = load_rig("paper1-mre").daq
+    d = daq_config(load_rig("paper1-mre"))
     assert d.valve_channel == "Dev1/ao0" and d.position_V_per_m == 100.0 and d.valve_range_V == (0.0, 10.0)
-    assert load_rig("paper2-enfield").daq is None
+    assert daq_config(load_rig("paper2-enfield")) is None
 
 
 @pytest.mark.parametrize("edit, field", [
@@ -163,11 +163,17 @@ def test_shipped_paper1_rig_has_the_example_daq_section():
     (('pressure_b_channel = "cDAQ1Mod1/ai5"', ""), "daq.pressure_b_channel"),
     (("timeout_s = 0.005", "timeout = 0.005"), "daq.timeout"),
 ])
-def test_bad_daq_sections_are_refused_naming_the_key(tmp_path, edit, field):
+def test_bad_daq_sections_are_refused_naming_the_key(tmp_path, capsys, edit, field):
+    """The rig keeps [daq] as data; the card's plant refuses a bad section, and so does any command that
+    takes the rig file, in one line naming the file and the key."""
     path = _rig_file(tmp_path, DAQ.replace(*edit))
+    rig = load_rig(path)
     with pytest.raises(InputFileError) as err:
-        load_rig(path)
+        DaqPlant(rig, (None, None))
     assert str(path) in str(err.value) and field in str(err.value)
+    assert main(["rigs", str(path)]) == 2
+    out = capsys.readouterr().err.strip()
+    assert len(out.splitlines()) == 1 and str(path) in out and field in out
 
 
 def test_gain_given_twice_must_agree(tmp_path):
@@ -176,12 +182,11 @@ def test_gain_given_twice_must_agree(tmp_path):
     path = tmp_path / "r.toml"
     path.write_text(text, encoding="utf-8")
     with pytest.raises(InputFileError, match="disagrees with"):
-        load_rig(path)
+        daq_config(load_rig(path))
 
 
 def test_daq_section_survives_writing_the_rig_back(tmp_path):
-    from pneusim.rig import write_rig
-
     for rig in (load_rig("paper1-mre"), load_rig(_rig_file(tmp_path))):
         back = load_rig(write_rig(rig, tmp_path / "back.toml"))
         assert back.daq == rig.daq
+        assert daq_config(back) == daq_config(rig)

@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from pneusim.mre.loop import run_loop
+from pneusim.loop import run_loop
 from pneusim.mre.udp import CMD, RigServer, UdpPlant, pack
 from pneusim.plant import Measurement, SimulatedPlant
 from pneusim.rig import load_rig

@@ -1,0 +1,125 @@
+"""Independent runs in parallel: local processes or a Dask cluster, results as they complete.
+
+:func:`executor_map` runs ``func(*task)`` for every task and yields each result as soon as it is
+ready; a task whose worker does not return (it died, or the executor broke) yields ``lost(task,
+exc)`` instead of stopping the others.  Sweeps (:mod:`pneusim.scenario.sweep`) and diagnosis
+batches (:mod:`pneusim.diagnosis.batch`) run here.
+
+Local workers run with one BLAS thread each: the workers are the parallelism, and BLAS threads
+of every worker would share the same cores and spin on them.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import as_completed as futures_completed
+from typing import Callable, Iterator, Sequence
+
+from threadpoolctl import threadpool_limits
+
+from .errors import PneusimError
+
+__all__ = ["executor_map", "local_pool", "dask_client"]
+
+#: the BLAS limit of a local worker, kept for the worker's life
+_BLAS_LIMIT = []
+
+
+def dask_client(dask: str, workers: int):
+    """``(client, cluster)``: a loopback ``LocalCluster`` of ``workers`` processes for ``dask = "local"``
+    (``cluster`` to close afterwards), else a client of the scheduler at ``dask`` (``cluster`` is None)."""
+    try:
+        # distributed takes seconds to import; only a Dask run needs it
+        from distributed import Client, LocalCluster
+    except ImportError as exc:
+        raise PneusimError(f"--dask needs the 'distributed' package ({exc})") from None
+    if dask == "local":
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, host="127.0.0.1", processes=True,
+                               dashboard_address=None)
+        return Client(cluster), cluster
+    try:
+        return Client(dask, timeout="15s"), None
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        raise PneusimError(f"--dask {dask}: no Dask scheduler answered there ({type(exc).__name__}: {exc}); "
+                           "expected tcp://HOST:PORT of a running scheduler, or 'local'") from None
+
+
+def _worker_init() -> None:
+    """In each local worker process: one BLAS thread (see the module docstring)."""
+    _BLAS_LIMIT.append(threadpool_limits(1))
+
+
+def local_pool(workers: int) -> ProcessPoolExecutor:
+    """A pool of ``workers`` local processes, each with one BLAS thread."""
+    return ProcessPoolExecutor(max_workers=workers, initializer=_worker_init)
+
+
+def executor_map(func: Callable, tasks: Sequence[tuple], lost: Callable, workers: int, dask: str | None = None,
+                 progress: bool = False, desc: str = "runs", pool: ProcessPoolExecutor | None = None) -> Iterator:
+    """Yield ``func(*task)`` for every task of ``tasks``, in the order they complete.
+
+    Parameters
+    ----------
+    func : callable
+        Picklable; called as ``func(*task)`` in a worker.
+    tasks : sequence of tuple
+    lost : callable
+        ``lost(task, exc)`` is yielded for a task whose worker did not return.
+    workers : int
+        Local processes (0: run in this process, one task after the other); with ``dask = "local"`` the
+        number of Dask workers.
+    dask : str or None
+        ``None`` (local processes), ``"local"`` (a loopback LocalCluster) or a scheduler address.
+    progress : bool
+        A progress bar labelled ``desc``.
+    pool : ProcessPoolExecutor or None
+        A running :func:`local_pool` to use (and leave running) instead of starting one for ``workers``.
+    """
+    bar = None
+    if progress:
+        from tqdm import tqdm   # ~0.1 s to import; only a run with a progress bar needs it
+        bar = tqdm(total=len(tasks), desc=desc, unit="run", mininterval=0.5)
+    try:
+        if dask:
+            yield from _dask_map(func, tasks, lost, workers, dask, bar)
+        elif workers <= 0:
+            for t in tasks:
+                yield func(*t)
+                if bar:
+                    bar.update()
+        else:
+            with contextlib.ExitStack() as stack:
+                if pool is None:
+                    pool = stack.enter_context(local_pool(workers))
+                futures = {pool.submit(func, *t): t for t in tasks}
+                for fut in futures_completed(futures):
+                    try:
+                        yield fut.result()
+                    except Exception as exc:  # noqa: BLE001 - e.g. BrokenProcessPool
+                        yield lost(futures[fut], exc)
+                    if bar:
+                        bar.update()
+    finally:
+        if bar:
+            bar.close()
+
+
+def _dask_map(func, tasks, lost, workers, dask, bar) -> Iterator:
+    """:func:`executor_map` on a Dask cluster."""
+    from distributed import as_completed   # seconds to import; only a Dask run needs it
+
+    client, cluster = dask_client(dask, workers)
+    try:
+        futures = {client.submit(func, *t, pure=False): t for t in tasks}
+        for fut in as_completed(futures):
+            try:
+                yield fut.result()
+            except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker
+                yield lost(futures[fut], exc)
+            if bar:
+                bar.update()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
