@@ -14,4 +14,5 @@ from .prefit import PrefitResult, prefit_recording
 from .parameters import DEFAULT_FREE, EFFECT_FREE
 from .result import FitResult, ParameterEstimate
 
-__all__ = ["fit_recording", "PhysicalFit", "FitStages", "prefit_recording", "PrefitResult", "noise_std_estimate", "FitResult", "ParameterEstimate", "DEFAULT_FREE", "EFFECT_FREE"]
+__all__ = ["fit_recording", "PhysicalFit", "FitStages", "prefit_recording", "PrefitResult", "noise_std_estimate",
+           "FitResult", "ParameterEstimate", "DEFAULT_FREE", "EFFECT_FREE"]

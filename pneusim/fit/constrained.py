@@ -116,7 +116,8 @@ def solve_ipopt_exact(pb: ShootingProblem, v, lower, upper, max_iter: int, rtol:
     level = int(os.environ.get("PNEUSIM_IPOPT_PRINT", "0"))
     far_above = np.isfinite(start) and np.sqrt(start / max(pb.n_residuals, 1)) > MODEL_SHORT
     res = solve_ipopt(pb, v, lower, upper, max_iter=max_iter, defect_tol=DEFECT_TOL_PER_RTOL * rtol,
-                      print_level=level, give_up_climb=give_up_climb, give_up_stall=give_up_stall if far_above else None)
+                      print_level=level, give_up_climb=give_up_climb,
+                      give_up_stall=give_up_stall if far_above else None)
     res.formulation = "continuity constraints"
     given_up = res.status == "User_Requested_Stop"    # the climb watch stopped it: never kept
     if given_up or not np.isfinite(res.objective) or res.objective > KEEP_CONSTRAINED * start:

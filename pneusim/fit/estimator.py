@@ -343,8 +343,9 @@ class PhysicalFit:
         pb.close()
         run.say("uncertainty: Gauss-Newton covariance done")
         n_est = setup.n_est
-        validation = self.stages.validate(setup.model, estimate, recording, n_est, uncertainty["states"][n_est - 1].copy(),
-                                          setup.delay_s, setup.rig.stroke_m, self.rtol)
+        x_boundary = uncertainty["states"][n_est - 1].copy()
+        validation = self.stages.validate(setup.model, estimate, recording, n_est, x_boundary, setup.delay_s,
+                                          setup.rig.stroke_m, self.rtol)
         result = FitResult.build(
             recording=recording, rig=setup.rig, model=setup.model, free=setup.free,
             parameters=_estimates(setup, estimate, uncertainty),
@@ -396,7 +397,8 @@ class _Run:
     def finish(self, v):
         """IPOPT on the whole estimation part from ``v``: ``(result, normalised rms)``."""
         options = self.options
-        done = options.stages.finish(self.pb, v, self.lo, self.hi, options.max_iter, options.rtol, penalty=PENALTY_WEIGHT)
+        done = options.stages.finish(self.pb, v, self.lo, self.hi, options.max_iter, options.rtol,
+                                     penalty=PENALTY_WEIGHT)
         return done, normalised_rms(self.pb, done)
 
     def solver_info(self, res, defect_sum_squares: float) -> dict:
@@ -440,6 +442,7 @@ def _estimates(setup: FitSetup, estimate: np.ndarray, uncertainty: dict) -> dict
         # IPOPT may end a hair outside a bound (its bound_relax_factor): report the bound itself, so a physical
         # range check never refuses a fitted value such as a static friction of -4e-7 N
         parameters[name] = ParameterEstimate(
-            name=name, estimate=float(np.clip(estimate[i], lo_b, hi_b)), std=float(uncertainty["std"][k] * setup.scales[k]),
-            start=float(setup.p_start[i]), lower=float(lo_b), upper=float(hi_b))
+            name=name, estimate=float(np.clip(estimate[i], lo_b, hi_b)),
+            std=float(uncertainty["std"][k] * setup.scales[k]), start=float(setup.p_start[i]), lower=float(lo_b),
+            upper=float(hi_b))
     return parameters

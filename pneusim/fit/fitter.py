@@ -54,7 +54,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
     threads : int
         Threads integrating segments in parallel.
     max_iter : int
-        IPOPT iterations per polishing round.
+        IPOPT iterations per round on the exact problem (:func:`.constrained.solve_ipopt_exact`).
     quiet : bool
         Print nothing.  By default one line per stage (pre-fit, trust region, IPOPT, uncertainty,
         validation) goes to standard error with its time and normalised residual; the same lines go

@@ -49,7 +49,8 @@ class IpoptResult:
 
 def damped_gauss_newton(gn):
     """The Gauss-Newton matrix ``gn`` (sparse, ``J^T J``) with :data:`GN_DAMPING` added to its diagonal:
-    ``gn + diag(1e-3 diag(gn) + 1e-9)`` (sparse), what this module's IPOPT and :func:`.constrained.settle_gauss_newton` step with."""
+    ``gn + diag(1e-3 diag(gn) + 1e-9)`` (sparse), what this module's IPOPT and
+    :func:`.constrained.settle_gauss_newton` step with."""
     return (gn + sparse.diags(GN_DAMPING[0] * gn.diagonal() + GN_DAMPING[1])).tocsr()
 
 

@@ -4,31 +4,26 @@ extended Kalman filter over a window, the one-step-ahead predictor of :mod:`.tra
 Why: a recording whose piston stick-slips from sample to sample (paper 2 in open loop, paper 1's
 closed-loop multisine without pressures) is chaotic on the fit's time scale.  The shooting problem's
 residual then depends on the phase of every slip, and its landscape in the friction parameters is
-rippled by every mistimed micro-slip: from the data sheet's values the pre-fit stops in a wrong basin
-(the robustness set's ``s1030``: 9.7 times noise, ``s1007``: 5.8, ``s1017``: 3.9, whatever the starts).
-The filter corrects the state after every sample, so its innovations depend smoothly on the
-parameters: along the line from ``s1007``'s data-sheet values to its truth the filter's negative
-log-likelihood falls monotonically to its minimum at the truth, where the shooting residual does not.
-Least squares on the whitened innovations from the data sheet's values end within 1 % of every truth
-on ``s1030`` and ``s1007`` (6 % on ``s1006``) in 11-17 s on a 2000-sample window; on ``s1017`` they end
-in a basin with the Stribeck velocity at 5 times the truth (3.2 times the innovations' noise level):
-far from the truth the filter can lose track of the piston, and where it does depends on the
-integrator's rounding.
+rippled by every mistimed micro-slip: from the data sheet's values the pre-fit stops in a wrong basin,
+whatever the starts.  The filter corrects the state after every sample, so its innovations depend
+smoothly on the parameters: along the line from a chaotic recording's data-sheet values to its truth
+the filter's negative log-likelihood falls monotonically to its minimum at the truth, where the shooting
+residual does not.  Far from the truth the filter can still lose track of the piston, and where it does
+depends on the integrator's rounding (``docs/decisions/0018``).
 
 The process noise is what smooths the landscape and what lets the filter absorb a wrong model: the fit
-lowers it in turn (:data:`PROCESS_SCHEDULE`), each stage from the last one's point, a homotopy from a
-broad basin to the sharp minimum.  Chamber pressures that the recording does not measure get a
-hundredth of the others' process noise (:data:`PRESSURE_FACTOR`): a filter free to move them explains a
-wrong valve and friction by them (``s1007``: static and Coulomb friction at 1.39 and 1.83 of the truth
-with the same process noise for every state; within 0.4 % with a hundredth on the pressures).  Measured
-pressures keep theirs: the measurements hold them, and a filter that cannot follow them loses track of
-the piston at the data sheet's values (``s1030``: 2.36 times its noise level with a hundredth).
+lowers it in turn (:data:`~.rules.PROCESS_SCHEDULE`), each stage from the last one's point, a homotopy from
+a broad basin to the sharp minimum.  Chamber pressures that the recording does not measure get a fraction
+of the others' process noise (:data:`~.rules.PRESSURE_FACTOR`): a filter free to move them explains a wrong
+valve and friction by them.  Measured pressures keep theirs: the measurements hold them, and a filter
+that cannot follow them loses track of the piston at the data sheet's values.  The friction smoothing
+velocity is held in the broad stages (:data:`~.rules.HELD_BROAD`): a broad filter trades it for mistimed
+slips.
 
 The gradient holds the filter's gain fixed (the state sensitivities propagate through the model's
 one-sample sensitivities and ``I - K H``); the least squares are SciPy's trust region on the whitened
 innovations with that Jacobian.
 """
-
 from __future__ import annotations
 
 import time
@@ -53,8 +48,8 @@ def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.nd
     after a stage that ends above ``give_up_above``.
 
     Why that stop: with less process noise the filter corrects less, and the innovations of a model that
-    lacks physics only grow (practice2's nominal fits, stage by stage: 4.8, 9.0, 11.4, 17.0 and 8.6, 42, 110,
-    164; a chaotic recording the model explains: 0.53, 0.75, 0.87, 0.92).
+    lacks physics only grow stage by stage, where those of a chaotic recording the model explains approach
+    their noise level (``docs/decisions/0018``).
 
     Returns ``(theta, x_first, info)``: the scaled parameters and first state (SI) of the last stage, and
     ``info`` with each stage's process noise, rms of the whitened innovations (1 where the model is right
@@ -99,8 +94,9 @@ def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.nd
 
         fit = least_squares(lambda u: evaluate(full(u))["innovations"], w[moving],
                             jac=lambda u: evaluate(full(u))["jacobian"][:, moving],
-                            bounds=(lo[moving], hi[moving]), method="trf", x_scale=1.0, max_nfev=PREDICTION_ERROR_EVALUATIONS,
-                            xtol=PREDICTION_ERROR_TOLERANCE, ftol=PREDICTION_ERROR_TOLERANCE)
+                            bounds=(lo[moving], hi[moving]), method="trf", x_scale=1.0,
+                            max_nfev=PREDICTION_ERROR_EVALUATIONS, xtol=PREDICTION_ERROR_TOLERANCE,
+                            ftol=PREDICTION_ERROR_TOLERANCE)
         w = full(fit.x)
         rms = float(np.sqrt(np.sum(fit.fun ** 2) / n_seen)) if np.all(np.isfinite(fit.fun)) else float("inf")
         stages.append({"process_std": fraction, "rms_innovations": rms, "evaluations": int(fit.nfev),

@@ -51,9 +51,10 @@ class PrefitResult:
 
 @one_blas_thread
 def prefit_recording(recording: Recording, rig: Rig | str | None = None, effects: Sequence[Effect] = (),
-                     free: Sequence[str] | None = None, *, samples: int = PREFIT_SAMPLES, start_values: dict | None = None,
-                     validation_fraction: float | None = None, segment_samples: int = SEGMENT_SAMPLES, rtol: float = 1e-6,
-                     threads: int = 2, second_route: bool | None = None, max_evaluations: int = TRUST_REGION_EVALUATIONS,
+                     free: Sequence[str] | None = None, *, samples: int = PREFIT_SAMPLES,
+                     start_values: dict | None = None, validation_fraction: float | None = None,
+                     segment_samples: int = SEGMENT_SAMPLES, rtol: float = 1e-6, threads: int = 2,
+                     second_route: bool | None = None, max_evaluations: int = TRUST_REGION_EVALUATIONS,
                      start: int = 0) -> PrefitResult:
     """The first stage of :func:`fit_recording` alone: the pre-fit from the rig's values (or
     ``start_values``) on the first ``samples`` samples of the estimation part, with ``effects`` on.

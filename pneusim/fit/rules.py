@@ -1,10 +1,11 @@
 """The fit's rules: every threshold and fixed choice that decides a fit's path or its verdict, in one place.
 
 Each is a named constant with its unit and the reason in one line, so that the whole policy reads on one
-screen and a change to one rule is weighed against its siblings.  The measurements behind them are in
-``docs/decisions/`` (the record named beside a group).  Normalised residuals are rms over the sensor
-noise std (1 at the noise level); continuity defects are in the integrator's state scales (stroke, 1 m/s,
-1 bar); ``theta`` is a free parameter over its scale (:mod:`.parameters`).
+screen and a change to one rule is weighed against its siblings.  The measurements behind them are in the
+decision records ``docs/decisions/NNNN-*.md``, numbered in parentheses beside a rule or a group.
+Normalised residuals are rms over the sensor noise std (1 at the noise level); continuity defects are in
+the integrator's state scales (stroke, 1 m/s, 1 bar); ``theta`` is a free parameter over its scale
+(:mod:`.parameters`).
 
 The stages import their rules from here; the names the rest of pneusim imports from a stage's module
 (``pneusim.fit.stages.MODEL_SHORT``, ``pneusim.fit.result.ABOVE_NOISE_WARNING``, ...) stay importable there.
@@ -52,26 +53,30 @@ CORRELATION_WARNING = 0.99
 DEFAULT_VALIDATION_FRACTION = 0.3
 #: largest validation fraction accepted: the rest must still estimate
 MAX_VALIDATION_FRACTION = 0.9
-#: samples, at least, to estimate on and to validate on
+#: samples, at least, to estimate on: refuses a recording too short to fit (a floor, not tuned)
 MIN_ESTIMATION_SAMPLES = 100
+#: samples, at least, to validate on: refuses a split that leaves nothing to validate on (a floor, not tuned)
 MIN_VALIDATION_SAMPLES = 20
 #: the piston must move over this many position-noise stds in the estimation part to excite friction and mass
 EXCITATION_NOISE_MULTIPLE = 50
-#: floors of the noise std a residual is divided by (fraction of the stroke; Pa): a noise-free recording's
-#: converter steps and a clean pressure trace must not weigh a residual infinitely
+#: floor of the position noise std a residual is divided by, as a fraction of the stroke: a noise-free
+#: recording's converter steps must not weigh a residual infinitely
 POSITION_NOISE_FLOOR = 1e-5
+#: Pa, floor of the pressure noise std a residual is divided by: the same for a clean pressure trace
 PRESSURE_NOISE_FLOOR_PA = 20.0
 
 # ------------------------------------------------------------------------------------ options' defaults
-#: samples per shooting segment: long enough to pin the parameters, short enough for a chained start (0011)
+#: samples per shooting segment: 25 or 100 in the pre-fit ended at 1.51 and 2.66 times noise where 50
+#: reached it (0011)
 SEGMENT_SAMPLES = 50
-#: a segment shorter than this many samples leaves the start states unconstrained by their samples
+#: samples, the floor of the ``segment_samples`` option (a floor, not tuned)
 MIN_SEGMENT_SAMPLES = 10
-#: samples of the pre-fit's window: enough to see every parameter, short enough for a cheap first basin
+#: samples of the pre-fit's window: a 1000-sample window, or a 500-sample one first, lost pre-fits (0011)
 PREFIT_SAMPLES = 2000
 #: pre-fit starts tried at most (the first the rig file's values; :data:`START_FACTORS`)
 PREFIT_STARTS = 3
-#: IPOPT iterations per round on the exact problem
+#: IPOPT iterations per round on the exact problem: near the optimum a few suffice; a warm refit still
+#: bringing its effect in at the cap gets one more round (0016)
 IPOPT_MAX_ITER = 40
 
 # ------------------------------------------------------------------------------------------- the starts
@@ -95,15 +100,17 @@ START_VELOCITY_SMOOTHING_S = 0.05
 #: interior pressures per chamber of the grid the first state's search starts from: a stick-slipping start
 #: has several local minima (0014)
 FIRST_STATE_GRID_POINTS = 8
-#: the best grid points refined by least squares in the first state's search
+#: the best grid points refined by least squares in the first state's search (0014)
 FIRST_STATE_LOCAL_STARTS = 4
-#: residual evaluations of each refinement of the first state, at most
+#: residual evaluations of each refinement of the first state, at most (a cap on a small problem: one
+#: segment's samples, two or three hidden values)
 FIRST_STATE_EVALUATIONS = 50
 #: widths of the prior on the first state's hidden values (m/s, Pa): broad, the data dominate where they speak
 FIRST_STATE_PRIOR_WIDTH = {"velocity_m_per_s": 0.02, "pressure_a_Pa": 1e5, "pressure_b_Pa": 1e5}
 
 # ------------------------------------------------------------------------------- the trust region (0001)
-#: residual evaluations of one trust-region stage, at most (its fresh starts share them)
+#: residual evaluations of one trust-region stage, at most (its fresh starts share them): the robustness set's
+#: pre-fits from the data sheet take a median of 15-20, the fit benchmark's 35 (0021)
 TRUST_REGION_EVALUATIONS = 80
 #: SciPy's relative step and cost tolerances of the trust region: the integration error is ~1e-6 relative
 TRUST_REGION_TOLERANCE = 1e-4
@@ -137,9 +144,11 @@ WARM_CONTINUE_BELOW = 0.75
 #: IPOPT's continuity tolerance per CVODES relative tolerance: defects below ``20 rtol`` (state-scaled) are
 #: within the integration error of the segments' ends
 DEFECT_TOL_PER_RTOL = 20
-#: IPOPT's acceptable level (and Gauss-Newton settling's) is this many times that tolerance
+#: IPOPT's acceptable level of the continuity defects (and Gauss-Newton settling's) is this many times that
+#: tolerance: three acceptable iterates in a row stop IPOPT instead of its chasing the integration error
 ACCEPTABLE_DEFECT_FACTOR = 10
-#: IPOPT's acceptable relative change of the objective over three iterates
+#: IPOPT's acceptable relative change of the objective over three iterates: the residuals carry the
+#: integrator's error (about rtol relative), which IPOPT's default tolerances would chase
 IPOPT_OBJECTIVE_CHANGE = 1e-3
 #: relative and absolute damping added to the Gauss-Newton matrix's diagonal: directions the residuals do
 #: not see (a hidden state while the piston sticks) would make the bare matrix singular
@@ -186,8 +195,9 @@ PRESSURE_FACTOR = 0.01
 #: parameters held at their start in the prediction-error stages whose process noise is above
 #: :data:`HELD_UNTIL`: a broad filter trades the friction smoothing velocity for mistimed slips (0018)
 HELD_BROAD = ("friction_smoothing_velocity_m_per_s",)
+#: process noise (fraction of each state's typical magnitude) above which :data:`HELD_BROAD` are held
 HELD_UNTIL = 1e-3
-#: filter passes per prediction-error stage at most
+#: filter passes per prediction-error stage at most: each stage starts from the last one's point (0018)
 PREDICTION_ERROR_EVALUATIONS = 40
-#: SciPy's relative step and cost tolerances of each prediction-error stage
+#: SciPy's relative step and cost tolerances of each prediction-error stage, as the trust region's
 PREDICTION_ERROR_TOLERANCE = 1e-4

@@ -2,14 +2,14 @@
 
 Why: a segment's start state carried over from a simulation of the segments before it is useless on
 a recording whose piston stick-slips from sample to sample (paper 2 in open loop).  There the model is
-chaotic on the fit's time scale: at the *true* parameters, segments started from the chained simulation
-of the robustness set's ``s1007`` fit their samples at 0.8 times the noise for the first two segments and
-at 3-20 times it from the ninth on (the 2000-sample window: 8.29).  Searching each segment's hidden
-states afresh on a grid (:func:`.initial._hidden_state`) brings the window to 0.87 but costs 19 s;
-filtering the whole window once, sample by sample, with the position (and pressures) correcting the
-model's state after every step, gives 0.91 in 0.4 s.  The filter only helps near the truth: at the data
-sheet's parameters (tens of percent off) its starts fit no better than the chained ones, so the fitter
-uses it after a fit, from that fit's parameters (:func:`.routes.tracked_route`).
+chaotic on the fit's time scale: even at the *true* parameters, segments started from the chained
+simulation fit their first samples at the noise level and leave the recorded slip pattern within
+seconds.  Searching each segment's hidden states afresh on a grid (:func:`.initial._hidden_state`) brings
+them back at a cost of seconds per segment; filtering the whole window once, sample by sample, with the
+position (and pressures) correcting the model's state after every step, does the same for the cost of
+one integration.  The filter only helps near the truth: at the data sheet's parameters (tens of percent
+off) its starts fit no better than the chained ones, so the fitter uses it after a fit, from that fit's
+parameters (:func:`.rescue_routes.tracked_route`; ``docs/decisions/0017``).
 
 The filter is :class:`filterpy.kalman.ExtendedKalmanFilter`'s update; its prediction is one sample of
 the fit's own integrator (:class:`~pneusim.solver.sensitivity.SensitivitySimulator`, the held command and

@@ -133,14 +133,12 @@ cdef extern from "cvodes/cvodes_ls.h":
 # per-vector work on 11 sensitivity vectors of 4 states (dense back substitutions 9 %, fused vector
 # operations 15 %), the generated sensitivity kernel 4 %.  Fewer steps is what pays: rtol 1e-5 takes
 # 9.8 steps a sample and 0.99 s, 1e-4 6.3 steps and 0.87 s.
-# Since then the vector operations (fused ones included) are small_vector.h's and the dense factor,
-# solve, copy and I - gamma J small_dense.h's: the same doubles, the paper-2 benchmark fit 11.2 -> 9.3 s
-# with small_dense.h, -> 4.9 s with both (stop 32).
-# The augmented corrector (stop 39) at stop 40, perf on the benchmark's pre-fit window: the block solve's twelve
-# 4x4 back substitutions one after the other were a fifth of an evaluation (small_dense.h now solves them
-# together, 20 % -> 7 %), the model's three kernels another fifth (now one, "aug", with f_x kept for the
-# Newton matrix), CVODE's norms over 48 values 5 % (small_vector.h's leading-norm vector); one evaluation
-# 73 -> 46 ms on one thread, every result the same to the last bit.
+# The vector operations (fused ones included) are small_vector.h's and the dense factor, solve, copy and
+# I - gamma J small_dense.h's: the same doubles in less time (docs/decisions/0020).
+# The augmented corrector: the block solve applies each operation to all blocks before the next, one model
+# kernel ("aug") gives f, S' and f_x with f_x kept for the Newton matrix, and CVODE's norm runs over the
+# state's own values (small_vector.h's leading-norm vector): every result the same to the last bit
+# (docs/decisions/0019, 0025).
 
 #: the augmented corrector's block solver handles models of up to this many states (small_dense.h's unrolled
 #: kernels); :class:`pneusim.solver.sensitivity.SensitivitySimulator` falls back to the staggered one above it

@@ -109,8 +109,8 @@ class SensitivitySimulator:
         CVODES's staggered corrector.  The same states to the tolerance and sensitivities as accurate
         (position sensitivities on the paper-2 benchmark's pre-fit window against an rtol 1e-10 reference:
         median error 0.17 % of each column's range against 0.15 %, largest 3.3 % both); one evaluation of
-        that window takes 45 ms against 138 ms on one thread (``benchmarks/test_bench_fit.py``, stop 40; 63 ms
-        against 123 ms before the block solve and the fused kernel).  Models with
+        that window takes a third of the staggered corrector's time on one thread (``benchmarks/test_bench_fit.py``
+        measures both; ``docs/decisions/0019``).  Models with
         more than :data:`._cvodes_sensitivity.BLOCK_MAX_STATES` (8) states, and ``linear_algebra="sundials"``,
         use the staggered corrector.
     """

@@ -6,11 +6,9 @@
  * equal to the last bit); what changes is that the loops are unrolled for each state count up to
  * SMALL_DENSE_MAX_N and reached without dispatch or column-pointer indirection.
  *
- * Why: at 4 states the generic dense routines were mostly loop control around 16 numbers.  Measured on
- * the simulator benchmark (perf, with SUNDIALS' own): factor 3.6 %, solve 6.4 %, copy 1.9 %, I - gamma J 2.9 % of the
- * run.  With this header (stop 32, same machine): paper 2's 80 s closed loop 497x -> 625x real time,
- * paper 1's 20 s 136x -> 176x, the paper-2 benchmark fit 11.2 -> 9.3 s; the same steps, the same
- * results.  CVODE still decides when to evaluate the Jacobian and set the matrix up; nothing here
+ * Why: at 4 states the generic dense routines were mostly loop control around 16 numbers (factor, solve,
+ * copy and I - gamma J together a seventh of a simulation's run under perf); this header takes the same
+ * steps to the same results in less time (docs/decisions/0020 has the measurements).  CVODE still decides when to evaluate the Jacobian and set the matrix up; nothing here
  * integrates.  A model with more than SMALL_DENSE_MAX_N states uses the same code with its state count
  * as a run-time bound.
  *

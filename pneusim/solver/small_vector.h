@@ -11,10 +11,10 @@
  * arithmetic without fused multiply-adds (1 x = x, -1 x = -x exactly), which the extensions are
  * compiled without (-ffp-contract=off).  The weighted rms norm sums (x_i w_i)^2 in index order.
  *
- * Why: measured on this machine (stop 32), after small_dense.h, with the same steps and the same results:
- * the simulator benchmark's paper-2 80 s closed loop 631x -> 1095x real time, paper 1's 20 s 176x ->
- * 297x; the paper-2 benchmark fit 9.3 -> 4.9 s.  Both headers together against SUNDIALS' own vector,
- * matrix and solver in the same run: 2.2x (benchmarks/test_bench_simulator.py prints it).
+ * Why: at 4 states the serial module's call chains and special-case branches cost more than the
+ * arithmetic; with the same steps and the same results, both headers together run a simulation about
+ * twice as fast as SUNDIALS' own vector, matrix and solver (benchmarks/test_bench_simulator.py prints the
+ * ratio; docs/decisions/0020 has the measurements).
  *
  * Used by _cvode_compiled.pyx (the simulator, SmallSerialVector) and _cvodes_sensitivity.pyx (the fit,
  * SmallSerialVectorFused).
