@@ -61,5 +61,5 @@ def extensions():
 
 
 # the three extensions cythonize and compile side by side, without debug information: the build is part
-# of the README's one-command setup (61 s -> 36 s here)
+# of the README's one-command setup (docs/decisions/0052-setup-build-time.md)
 setup(ext_modules=extensions(), options={"build_ext": {"parallel": 2}})

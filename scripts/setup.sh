@@ -33,7 +33,7 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   # our own extension cimports scikits.odes' declarations, so it builds without isolation
   .venv/bin/python -m pip install -q "cython>=3" "setuptools>=77" numpy
   # --no-compile: Python compiles the modules it imports anyway; compiling every installed file up front
-  # cost a minute of the setup (120 s -> 53 s for this step)
+  # costs a minute of the setup (docs/decisions/0052-setup-build-time.md)
   .venv/bin/python -m pip install -q --no-compile --no-build-isolation -e ".[test]"
   echo "$want" > "$stamp"
 fi
