@@ -5,6 +5,8 @@ Only single-input single-output records are supported.  Signals are stored as
 """
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -14,9 +16,48 @@ from .errors import SysidError
 __all__ = ["IDData", "iddata", "detrend"]
 
 
-def _as_signal(x, name: str) -> np.ndarray:
+def real_number(value, name: str, expected: str) -> float:
+    """``value`` as a float when it is one real number, else :class:`SysidError` ``"{name} must be {expected}"``.
+
+    Accepted: Python and NumPy integers and floats, 0-d real arrays.  Refused: ``bool``
+    (``True`` is not a sample time or a forgetting factor), text, complex numbers, sequences.
+    """
+    ok = isinstance(value, numbers.Real) or (isinstance(value, np.ndarray) and value.ndim == 0
+                                             and value.dtype.kind in "iuf")
+    if not ok or isinstance(value, (bool, np.bool_)):
+        raise SysidError(f"{name} must be {expected}, got {value!r} ({type(value).__name__}).")
+    return float(value)
+
+
+def check_sample_time(value, name: str = "Ts") -> float:
+    """A sample time in seconds: one real, finite number > 0 (as a float)."""
+    ts = real_number(value, name, "a positive number of seconds")
+    if not (math.isfinite(ts) and ts > 0):
+        raise SysidError(f"{name} must be a positive number of seconds, got {value!r}.")
+    return ts
+
+
+def as_signal(x, name: str) -> np.ndarray:
+    """``x`` as a finite, real 1-D float array (a column or row vector is flattened).
+
+    A complex array is accepted only when every imaginary part is zero (nothing is
+    dropped); text is refused rather than parsed.
+    """
     try:
-        a = np.asarray(x, dtype=float)
+        a = np.asarray(x)
+    except (TypeError, ValueError):
+        raise SysidError(f"{name} must be a numeric 1-D array, got {type(x).__name__}.") from None
+    if a.dtype.kind == "c":
+        bad = np.flatnonzero(np.ravel(a.imag) != 0)
+        if bad.size:
+            i = int(bad[0])
+            raise SysidError(f"{name} must be real, but sample {i} is {np.ravel(a)[i]} (complex); pass its real "
+                             f"part or its magnitude explicitly.")
+        a = a.real
+    if a.dtype.kind in "US":
+        raise SysidError(f"{name} must be a numeric 1-D array, got text ({type(x).__name__}).")
+    try:
+        a = a.astype(float)
     except (TypeError, ValueError):
         raise SysidError(f"{name} must be a numeric 1-D array, got {type(x).__name__}.") from None
     if a.ndim == 2 and 1 in a.shape:
@@ -58,17 +99,15 @@ class IDData:
     metadata: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self):
-        y = _as_signal(self.y, "y")
-        u = _as_signal(self.u, "u")
+        y = as_signal(self.y, "y")
+        u = as_signal(self.u, "u")
         if y.shape != u.shape:
             raise SysidError(
                 f"y and u must have the same length, got {y.size} output and {u.size} input samples.")
-        try:
-            ts = float(self.Ts)
-        except (TypeError, ValueError):
-            raise SysidError(f"Ts must be a positive number of seconds, got {self.Ts!r}.") from None
-        if not (np.isfinite(ts) and ts > 0):
-            raise SysidError(f"Ts must be a positive number of seconds, got {self.Ts!r}.")
+        ts = check_sample_time(self.Ts)
+        t0 = real_number(self.tstart, "tstart", "a finite number of seconds")
+        if not math.isfinite(t0):
+            raise SysidError(f"tstart must be a finite number of seconds, got {self.tstart!r}.")
         if y.size < 2:
             raise SysidError(f"y and u must hold at least 2 samples, got {y.size}.")
         y.setflags(write=False)
@@ -76,6 +115,7 @@ class IDData:
         object.__setattr__(self, "y", y)
         object.__setattr__(self, "u", u)
         object.__setattr__(self, "Ts", ts)
+        object.__setattr__(self, "tstart", t0)
 
     def __len__(self) -> int:
         return self.y.size

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .data import check_sample_time
 from .errors import SysidError
 
 __all__ = ["IDPoly", "idpoly"]
@@ -19,8 +20,21 @@ __all__ = ["IDPoly", "idpoly"]
 _ONE = np.ones(1)
 
 
+def coefficients(p, name: str) -> np.ndarray:
+    """Real polynomial coefficients as a 1-D float array (complex, text or a matrix refused)."""
+    try:
+        a = np.asarray(p)
+        vector = a.ndim <= 1 or (a.ndim == 2 and 1 in a.shape)
+        a = np.atleast_1d(a.astype(float)).ravel() if vector and a.dtype.kind in "biufO" else None
+    except (TypeError, ValueError):
+        a = None
+    if a is None:
+        raise SysidError(f"{name} must be a 1-D array of real coefficients, got {p!r}.")
+    return a
+
+
 def _monic(p, name: str) -> np.ndarray:
-    p = np.atleast_1d(np.asarray(p, dtype=float)).ravel()
+    p = coefficients(p, name)
     if p.size == 0:
         return _ONE.copy()
     if p[0] != 1.0:
@@ -101,7 +115,8 @@ class IDPoly:
         self.C = _monic(self.C, "C")
         self.D = _monic(self.D, "D")
         self.F = _monic(self.F, "F")
-        self.B = np.atleast_1d(np.asarray(self.B, dtype=float)).ravel()
+        self.B = coefficients(self.B, "B")
+        self.Ts = check_sample_time(self.Ts)
         self.nk = int(self.nk)
         if self.nb is None:
             self.nb = max(self.B.size - self.nk, 0)
@@ -226,7 +241,7 @@ def idpoly(A, B, C=None, D=None, F=None, Ts=1.0, noise_variance=0.0) -> IDPoly:
 
     ``nk`` is the number of leading zeros of ``B``.
     """
-    B = np.atleast_1d(np.asarray(B, dtype=float)).ravel()
+    B = coefficients(B, "B")
     nz = np.flatnonzero(B)
     nk = int(nz[0]) if nz.size else B.size
     one = np.ones(1)

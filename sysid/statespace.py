@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.signal import ss2tf
 
+from .data import check_sample_time
 from .errors import SysidError
 from .polynomial import IDPoly, std_of
 
@@ -66,6 +67,21 @@ class IDSS:
     loss: float = float("nan")
     n_samples: int = 0
     warnings: list = field(default_factory=list)
+
+    def __post_init__(self):
+        A = _real_matrix(self.A, "A")
+        n = A.shape[0]
+        if A.shape != (n, n) or n == 0:
+            raise SysidError(f"A must be a square matrix with at least one state, got shape {A.shape}.")
+        shapes = {"B": (n, 1), "C": (1, n), "D": (1, 1), "K": (n, 1)}
+        for name, shape in shapes.items():
+            M = _real_matrix(getattr(self, name), name)
+            if M.size != shape[0] * shape[1] or (M.shape != shape and min(M.shape) != 1):
+                raise SysidError(f"{name} must have shape {shape} for a model with {n} states "
+                                 f"(one input, one output), got {M.shape}.")
+            setattr(self, name, M.reshape(shape))
+        self.A = A
+        self.Ts = check_sample_time(self.Ts)
 
     @property
     def nx(self) -> int:
@@ -131,8 +147,28 @@ class IDSS:
         return self.to_idpoly().zeros()
 
     def freqresp(self, omega) -> np.ndarray:
-        """``G(e^{j omega Ts})`` at ``omega`` in rad/s."""
-        return self.to_idpoly().freqresp(omega)
+        """``G(e^{j omega Ts}) = C (zI - A)^-1 B + D`` at ``omega`` in rad/s (shape of ``omega``).
+
+        Evaluated in state space (one linear solve per frequency), not through the
+        characteristic polynomial of ``A``, which loses the poles of a high-order model.
+        """
+        w = np.asarray(omega, dtype=float)
+        z = np.exp(1j * w.ravel() * self.Ts)
+        n = self.nx
+        M = z[:, None, None] * np.eye(n) - self.A
+        x = np.linalg.solve(M, np.broadcast_to(self.B.astype(complex), (z.size, n, 1)))
+        return ((self.C @ x)[:, 0, 0] + self.D.item()).reshape(w.shape)
+
+
+def _real_matrix(M, name: str) -> np.ndarray:
+    try:
+        a = np.asarray(M)
+        a = np.atleast_2d(a.astype(float)) if a.dtype.kind in "biufO" and a.ndim <= 2 else None
+    except (TypeError, ValueError):
+        a = None
+    if a is None:
+        raise SysidError(f"{name} must be a real matrix (at most 2-D), got {type(M).__name__} {np.shape(M)}.")
+    return a
 
 
 def idss_from_armax(p: IDPoly, **attributes) -> IDSS:

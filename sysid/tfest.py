@@ -28,9 +28,9 @@ from scipy.signal import cont2discrete, lfilter
 from ._blas import one_blas_thread
 from ._checks import check_data, check_enough_data, check_order, scaled
 from ._diagnose import finish
-from .data import IDData
+from .data import IDData, check_sample_time, real_number
 from .errors import SysidError
-from .polynomial import IDPoly, std_of
+from .polynomial import IDPoly, coefficients, std_of
 
 __all__ = ["IDTF", "TFEst", "tfest"]
 
@@ -65,6 +65,20 @@ class IDTF:
     n_samples: int = 0
     report: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+
+    def __post_init__(self):
+        self.num = coefficients(self.num, "num")
+        self.den = coefficients(self.den, "den")
+        if self.den.size == 0 or self.den[0] != 1.0:
+            raise SysidError(f"den must be monic (first coefficient 1, highest power of s first), got {self.den!r}.")
+        if self.num.size >= self.den.size:
+            raise SysidError(f"num must have a lower degree than den (strictly proper), got {self.num.size - 1} "
+                             f"and {self.den.size - 1}.")
+        self.Ts = check_sample_time(self.Ts)
+        delay = real_number(self.iodelay, "iodelay", "a non-negative number of seconds")
+        if not (np.isfinite(delay) and delay >= 0):
+            raise SysidError(f"iodelay must be a non-negative number of seconds, got {self.iodelay!r}.")
+        self.iodelay = delay
 
     @property
     def parameters(self) -> np.ndarray:

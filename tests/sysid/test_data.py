@@ -1,3 +1,6 @@
+import math
+import warnings
+
 import numpy as np
 import pytest
 
@@ -105,3 +108,66 @@ def test_load_recording_requires_time_and_finite_cells(tmp_path):
     p.write_text(head + "time_s,valve_cmd_V,position_m\n" + "\n".join(rows) + "\n")
     with pytest.raises(sysid.SysidError, match=r"nan.csv:34: column 'position_m' must be finite"):
         sysid.load_recording(p)
+
+
+# ------------------------------------------------------------------ values the containers refuse
+def test_complex_signal_is_refused_not_cast():
+    """numpy's cast dropped the imaginary part with only a ComplexWarning."""
+    y = np.ones(10, complex)
+    y[4] = 1 + 2j
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                      # no ComplexWarning on the way
+        with pytest.raises(sysid.SysidError, match=r"^y must be real, but sample 4 is \(1\+2j\) \(complex\)"):
+            sysid.iddata(y, np.ones(10), 1.0)
+        with pytest.raises(sysid.SysidError, match=r"^u must be real"):
+            sysid.iddata(np.ones(10), np.full(10, 1j), 1.0)
+        d = sysid.iddata(np.arange(10) + 0j, np.ones(10), 1.0)   # no imaginary part to lose
+    assert d.y.dtype == float and d.y[3] == 3.0
+
+
+def test_text_signal_is_refused_not_parsed():
+    with pytest.raises(sysid.SysidError, match=r"^y must be a numeric 1-D array, got text"):
+        sysid.iddata(["1.0", "2.0", "3.0"], [1.0, 2.0, 3.0], 1.0)
+
+
+@pytest.mark.parametrize("ts", [True, False, np.True_, "0.5", [0.5], 1 + 0j, math.inf])
+def test_sample_time_must_be_one_real_number(ts):
+    """Ts = True was taken as 1 s, '0.5' parsed."""
+    with pytest.raises(sysid.SysidError, match=r"^Ts must be a positive number of seconds"):
+        sysid.iddata(np.zeros(10), np.zeros(10), ts)
+
+
+def test_sample_time_from_numpy_is_a_float():
+    for ts in (np.float64(0.5), np.float32(0.5), np.array(0.5), np.int64(2)):
+        d = sysid.iddata(np.zeros(10), np.zeros(10), ts)
+        assert type(d.Ts) is float and d.Ts == float(ts)
+    with pytest.raises(sysid.SysidError, match="^tstart must be a finite number of seconds"):
+        sysid.iddata(np.zeros(10), np.zeros(10), 1.0, tstart=math.nan)
+
+
+def test_iddata_copies_rather_than_freezes_the_callers_arrays():
+    y, u = np.arange(10.0), np.ones(10)
+    d = sysid.iddata(y, u, 1.0)
+    y[0] = 5.0                                               # still the caller's to write
+    assert d.y[0] == 0.0 and not d.y.flags.writeable
+
+
+@pytest.mark.parametrize("make,match", [
+    (lambda: sysid.idpoly([1, -0.5], [0, 1], Ts=True), "^Ts must be a positive number of seconds"),
+    (lambda: sysid.idpoly([1, -0.5], [0, 1], Ts=0.0), "^Ts must be a positive number of seconds"),
+    (lambda: sysid.idpoly([1, -0.5j], [0, 1]), "^A must be a 1-D array of real coefficients"),
+    (lambda: sysid.idpoly([1, -0.5], "01"), "^B must be a 1-D array of real coefficients"),
+    (lambda: sysid.IDSS(np.eye(2), np.ones((2, 1)), np.ones((1, 2)), np.zeros((1, 1)), np.zeros((2, 1)), Ts=-1),
+     "^Ts must be a positive number of seconds"),
+    (lambda: sysid.IDSS(np.eye(2), np.ones((3, 1)), np.ones((1, 2)), np.zeros((1, 1)), np.zeros((2, 1))),
+     r"^B must have shape \(2, 1\) for a model with 2 states"),
+    (lambda: sysid.IDSS(np.ones((2, 3)), np.ones((2, 1)), np.ones((1, 2)), 0.0, np.zeros((2, 1))),
+     "^A must be a square matrix"),
+    (lambda: sysid.IDTF(np.array([1.0]), np.array([1.0, 1.0]), Ts=0.0), "^Ts must be a positive number"),
+    (lambda: sysid.IDTF(np.array([1.0]), np.array([1.0, 1.0]), iodelay=-0.1), "^iodelay must be a non-negative"),
+    (lambda: sysid.IDTF(np.array([1.0, 0.0]), np.array([1.0, 1.0])), "^num must have a lower degree than den"),
+    (lambda: sysid.IDTF(np.array([1.0]), np.array([2.0, 1.0])), "^den must be monic"),
+])
+def test_model_constructors_check_their_values(make, match):
+    with pytest.raises(sysid.SysidError, match=match):
+        make()
