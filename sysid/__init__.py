@@ -11,7 +11,7 @@ from .recording import load_recording
 from .polynomial import IDPoly, idpoly
 from .arx import ARX, arx
 from .pem import PEM, ARMAX, OE, BJ, armax, oe, bj, pem
-from .recursive import RecursiveARX, RecursiveARMAX, RLSResult, rls
+from .recursive import RecursiveARX, RecursiveARMAX, RLSResult, rls, check_rls_options
 from .statespace import IDSS
 from .subspace import N4SID, n4sid
 from .ssest import SSEst, ssest
@@ -26,7 +26,7 @@ __all__ = [
     "IDPoly", "idpoly",
     "ARX", "arx",
     "PEM", "ARMAX", "OE", "BJ", "armax", "oe", "bj", "pem",
-    "RecursiveARX", "RecursiveARMAX", "RLSResult", "rls",
+    "RecursiveARX", "RecursiveARMAX", "RLSResult", "rls", "check_rls_options",
     "IDSS", "N4SID", "n4sid", "SSEst", "ssest",
     "IDTF", "TFEst", "tfest",
     "predict", "simulate", "compare", "fit_percent",

@@ -39,16 +39,6 @@ def check_enough_data(n_samples: int, n_parameters: int, what: str) -> None:
             f"got {n_samples}.")
 
 
-def check_forgetting(lam) -> float:
-    try:
-        v = float(lam)
-    except (TypeError, ValueError):
-        raise SysidError(f"forgetting must be a number in (0, 1], got {lam!r}.") from None
-    if not (0.0 < v <= 1.0):
-        raise SysidError(f"forgetting must be a number in (0, 1], got {lam!r}.")
-    return v
-
-
 def rms_scale(x, name: str) -> float:
     """RMS of ``x`` computed without overflow; refuses an all-zero signal (nothing to identify from)."""
     x = np.asarray(x, dtype=float)

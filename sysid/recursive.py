@@ -24,23 +24,115 @@ Implementation note: to keep one ``update`` to a handful of BLAS calls,
 array ``M = [Q | theta]`` and updated with a single rank-one ``dger`` call;
 ``P = Q / lambda^t`` is recovered on access and ``Q`` is renormalised before
 ``lambda^t`` underflows.  This is algebraically identical to eq. (8).
+
+Settings that cannot give an estimate are refused (:func:`check_rls_options`):
+a memory ``1/(1 - lambda)`` shorter than ``d + 1`` samples, and, where the
+signals are known (:func:`rls`), a ``c`` for which the first update already
+cancels every digit of ``P``.  An update that meets ``psi^T P psi >= lambda/eps``
+later (``P`` grown in directions the input does not excite) says so once
+(:class:`~sysid.SysidWarning`, ``warnings``); one that would overflow is refused
+with the estimate unchanged.
 """
 from __future__ import annotations
 
+import math
 import numbers
+import warnings as _warnings
 from collections import deque
 
 import numpy as np
 from scipy.linalg.blas import dger
 
-from ._checks import check_data, check_forgetting, check_orders
-from .data import IDData
-from .errors import SysidError
+from ._checks import check_data, check_enough_data, check_orders
+from .data import IDData, check_sample_time, real_number
+from .errors import SysidError, SysidWarning
 from .polynomial import IDPoly, std_of
 
 _dot = np.dot
 
-__all__ = ["RecursiveARX", "RecursiveARMAX", "RLSResult", "rls"]
+__all__ = ["RecursiveARX", "RecursiveARMAX", "RLSResult", "rls", "check_rls_options", "RLS_DIGITS_LIMIT"]
+
+RLS_DIGITS_LIMIT = 1.0 / np.finfo(float).eps
+"""Largest ``psi^T P psi / lambda`` (about 4.5e15) an update may meet.
+
+The covariance update subtracts from ``P`` a matrix that agrees with it to
+``log10(psi^T P psi / lambda)`` digits in the direction of ``psi``; at ``1/eps``
+nothing of float64's 16 digits is left and ``P`` (hence ``theta``) is rounding.
+With ``P(0) = c I`` the first update meets ``c |psi|^2``.
+"""
+
+
+def _rls_orders(orders) -> tuple[int, int, int, int]:
+    """``(na, nb, nc, nk)`` from ``[na, nb, nk]`` or ``[na, nb, nc, nk]``, with at least one parameter."""
+    orders = list(orders) if np.iterable(orders) and not isinstance(orders, str) else orders
+    if np.iterable(orders) and len(orders) == 4:
+        na, nb, nc, nk = check_orders(orders, ("na", "nb", "nc", "nk"), (0, 0, 0, 0))
+    else:
+        na, nb, nk = check_orders(orders, ("na", "nb", "nk"), (0, 0, 0))
+        nc = 0
+    if na + nb + nc == 0:
+        raise SysidError("orders must give at least one parameter, got na = nb = nc = 0.")
+    return na, nb, nc, nk
+
+
+def check_rls_options(orders, forgetting=1.0, initial_covariance=1000.0, *, max_abs_y=None, max_abs_u=None):
+    """Check the settings of a recursive least-squares estimator; return them as numbers.
+
+    The checks of :class:`RecursiveARX` and :func:`rls`, for any caller that runs the
+    same recursion (eq. 8) elsewhere, e.g. in a control loop: call it before the first
+    sample, so that a bad setting is one :class:`SysidError` naming it instead of a NaN
+    or a silently wrong estimate later.
+
+    Parameters
+    ----------
+    orders : sequence of int
+        ``[na, nb, nk]`` or ``[na, nb, nc, nk]``; ``d = na + nb + nc`` parameters.
+    forgetting : float
+        ``lambda``, in ``[d/(d+1), 1]``: the memory ``1/(1 - lambda)`` (samples) must
+        hold at least ``d + 1`` samples, as a batch fit needs more samples than parameters
+        (below ``(d-1)/(d+1)`` the noise variance and the covariance are undefined, and
+        the recursion overflows for small ``lambda``).
+    initial_covariance : float
+        ``c`` in ``P(0) = c I``: finite and > 0.
+    max_abs_y, max_abs_u : float, optional
+        Largest ``|y|`` and ``|u|`` the estimator will see (output and input units).  With
+        them ``c`` is also checked against the signals: ``c |psi|^2`` with ``|psi|^2`` up to
+        ``(na + nc) max_abs_y^2 + nb max_abs_u^2`` must stay below ``lambda / eps``
+        (:data:`RLS_DIGITS_LIMIT`), else the first update leaves no correct digit in ``P``.
+
+    Returns
+    -------
+    (na, nb, nc, nk), forgetting, initial_covariance : tuple of int, float, float
+
+    Raises
+    ------
+    SysidError
+        One sentence naming the argument and the range expected.
+    """
+    na, nb, nc, nk = _rls_orders(orders)
+    d = na + nb + nc
+    low = d / (d + 1.0)
+    lam = real_number(forgetting, "forgetting", f"a number in [{low:.4g}, 1]")
+    if not low <= lam <= 1.0:
+        raise SysidError(f"forgetting must be in [{low:.4g}, 1] for {d} parameters (its memory 1/(1 - forgetting) "
+                         f"must hold at least d + 1 = {d + 1} samples), got {forgetting!r}.")
+    c = real_number(initial_covariance, "initial_covariance", "a positive number c (P0 = c I)")
+    if not (math.isfinite(c) and c > 0):
+        raise SysidError(f"initial_covariance must be a positive finite number c (P0 = c I), got "
+                         f"{initial_covariance!r}.")
+    if max_abs_y is not None or max_abs_u is not None:
+        ymax = real_number(0.0 if max_abs_y is None else max_abs_y, "max_abs_y", "a number")
+        umax = real_number(0.0 if max_abs_u is None else max_abs_u, "max_abs_u", "a number")
+        with np.errstate(over="ignore"):
+            psi2 = (na + nc) * ymax ** 2 + nb * umax ** 2
+            if not c * psi2 < lam * RLS_DIGITS_LIMIT:
+                limit = lam * RLS_DIGITS_LIMIT / psi2
+                raise SysidError(
+                    f"initial_covariance c = {c:.4g} is too large for signals up to |y| = {ymax:.4g} and "
+                    f"|u| = {umax:.4g}: c |psi|^2 = {c * psi2:.3g} must stay below forgetting/eps = "
+                    f"{lam * RLS_DIGITS_LIMIT:.3g}, beyond which the first update leaves no correct digit in P "
+                    f"(expected c < {limit:.3g}).")
+    return (na, nb, nc, nk), lam, c
 
 
 class RecursiveARX:
@@ -51,8 +143,8 @@ class RecursiveARX:
     orders : sequence of int
         ``[na, nb, nk]`` (ARX) or ``[na, nb, nc, nk]`` (ARMAX, extended LS).
     forgetting : float
-        Forgetting factor ``lambda`` in (0, 1]; the memory is about
-        ``1 / (1 - lambda)`` samples.
+        Forgetting factor ``lambda`` in ``[d/(d+1), 1]`` for ``d`` parameters; the memory
+        is about ``1 / (1 - lambda)`` samples and must hold at least ``d + 1``.
     initial_covariance : float
         ``c`` in ``P(0) = c I`` (> 0; the paper uses 100 < c < 10 000).  It acts as a
         prior ``|theta|^2 / c`` that is forgotten like old data; with ``forgetting = 1``
@@ -73,32 +165,16 @@ class RecursiveARX:
 
     def __init__(self, orders, forgetting: float = 1.0, initial_covariance: float = 1000.0,
                  initial_parameters=None, Ts: float = 1.0):
-        orders = list(orders) if np.iterable(orders) else orders
-        if np.iterable(orders) and len(orders) == 4:
-            na, nb, nc, nk = check_orders(orders, ("na", "nb", "nc", "nk"), (0, 0, 0, 0))
-        else:
-            na, nb, nk = check_orders(orders, ("na", "nb", "nk"), (0, 0, 0))
-            nc = 0
+        (na, nb, nc, nk), lam, c = check_rls_options(orders, forgetting, initial_covariance)
         d = na + nb + nc
-        if d == 0:
-            raise SysidError("orders must give at least one parameter, got na = nb = nc = 0.")
-        lam = check_forgetting(forgetting)
-        try:
-            c = float(initial_covariance)
-        except (TypeError, ValueError):
-            c = float("nan")
-        if not (np.isfinite(c) and c > 0):
-            raise SysidError(f"initial_covariance must be a positive number c (P0 = c I), got {initial_covariance!r}.")
         self.na, self.nb, self.nc, self.nk, self.d = na, nb, nc, nk, d
         self.forgetting = lam
         self.initial_covariance = c
-        self.Ts = Ts
+        self.Ts = check_sample_time(Ts)
         self._M = np.zeros((d, d + 1), order="F")
         self._M[:, :d] = c * np.eye(d)
         if initial_parameters is not None:
-            th = np.asarray(initial_parameters, dtype=float).ravel()
-            if th.size != d:
-                raise SysidError(f"initial_parameters must have {d} entries, got {th.size}.")
+            th = _parameters(initial_parameters, d)
             self._M[:, d] = th
         self._s = 1.0
         self._V = 0.0
@@ -106,6 +182,7 @@ class RecursiveARX:
         self._MT = self._M.T
         self._udelay = deque([0.0] * nk)  # u(t-1) .. u(t-nk), most recent first
         self.n_updates = 0
+        self.warnings = []
 
     # ------------------------------------------------------------------ online
     def update(self, y: float, u: float) -> float:
@@ -118,17 +195,17 @@ class RecursiveARX:
         u : float
             Input at time t (used now if ``nk = 0``, otherwise delayed).
         """
-        try:
-            bad = y - y != 0.0 or u - u != 0.0  # NaN or +-inf, checked before any state changes
-        except (TypeError, ValueError):        # not a number (str, None, a vector): say which
-            raise SysidError(_not_a_sample(y, u, self.n_updates)) from None
-        if bad:
+        if type(y) is not float or type(u) is not float:   # ints, NumPy scalars: as floats; else refused
+            y, u = _samples(y, u, self.n_updates)
+        if y - y != 0.0 or u - u != 0.0:  # NaN or +-inf, checked before any state changes
             raise SysidError(f"update needs finite y and u, got y = {y!r}, u = {u!r} "
                              f"(sample {self.n_updates}); the estimate is unchanged.")
         psi = self._psi
         na, nb = self.na, self.nb
         # input part of the regressor: u(t-nk) becomes the newest entry
+        u_now = u
         if nb:
+            oldest = psi[na + nb - 1]      # kept to undo the shift if the update is refused
             if self.nk:
                 ud = self._udelay
                 ud.appendleft(u)
@@ -142,7 +219,20 @@ class RecursiveARX:
         k = v[:d]
         lam = self.forgetting
         s = self._s * lam
-        den = s + psi.dot(k)
+        pk = psi.dot(k)                    # lambda^t psi^T P psi
+        if not pk < s * RLS_DIGITS_LIMIT:  # no digit of P left, or overflow (inf, NaN)
+            if not math.isfinite(pk):
+                msg = self._overflow_message(pk, u_now)
+                if nb:
+                    if self.nk:
+                        ud.append(u)
+                        ud.popleft()
+                    if nb > 1:
+                        psi[na:na + nb - 1] = psi[na + 1:na + nb]
+                    psi[na + nb - 1] = oldest
+                raise SysidError(msg)
+            self._precision_lost(pk / self._s)
+        den = s + pk
         eps = y - v[d]
         v[d] = -eps
         dger(-1.0 / den, k, v, a=M, overwrite_a=1)
@@ -179,6 +269,26 @@ class RecursiveARX:
         for yk, uk in zip(data.y.tolist(), data.u.tolist()):
             self.update(yk, uk)
         return self
+
+    def _overflow_message(self, pk, u_now) -> str:
+        psi2 = float(np.dot(self._psi, self._psi))
+        return (f"update: psi^T P psi overflows at sample {self.n_updates} ({pk}; |psi|^2 = {psi2:.3g}, largest "
+                f"P entry {float(np.max(np.abs(self.P))):.3g}): initial_covariance c = {self.initial_covariance:.4g} "
+                f"is too large for these signals, or P grew without excitation; use a smaller c or y, u in units "
+                f"nearer 1 (u = {u_now!r} now), the estimate is unchanged.")
+
+    def _precision_lost(self, ratio: float) -> None:
+        """Say once that an update met ``psi^T P psi >= lambda / eps`` (P is rounding from here on)."""
+        if self.warnings:
+            return
+        msg = (f"RLS update at sample {self.n_updates} met psi^T P psi = {ratio:.3g}, beyond forgetting/eps = "
+               f"{self.forgetting * RLS_DIGITS_LIMIT:.3g}: the covariance update cancels all 16 digits of P along "
+               f"psi, so P, theta and their uncertainty are rounding until the data refill them (about "
+               f"1/(1 - forgetting) samples with forgetting < 1, never without); use a smaller initial_covariance "
+               f"(c = {self.initial_covariance:.4g} now) or y, u in units nearer 1, and with forgetting < 1 keep "
+               f"the input exciting (P grows like forgetting^-t in directions the data do not excite).")
+        self.warnings.append(msg)
+        _warnings.warn(msg, SysidWarning, stacklevel=3)
 
     # --------------------------------------------------------------- results
     @property
@@ -230,14 +340,32 @@ class RecursiveARX:
                       covariance=self.covariance if ok else None, n_samples=self.n_updates)
 
 
-def _not_a_sample(y, u, n: int) -> str:
+def _samples(y, u, n: int) -> tuple[float, float]:
+    """``(y, u)`` as floats when each is one real number (int, NumPy scalar, size-1 real array); else
+    :class:`SysidError` naming the first that is not (complex, bool, text, None, a vector)."""
+    out = []
     for name, v in (("y", y), ("u", u)):
-        if isinstance(v, (bool, np.bool_)) or not (isinstance(v, (numbers.Real, np.number)) or
-                                                   (isinstance(v, np.ndarray) and v.size == 1
-                                                    and np.issubdtype(v.dtype, np.number))):
-            return (f"update: {name} must be one real number (the sample at time t), got {v!r} "
-                    f"({type(v).__name__}) at sample {n}; the estimate is unchanged.")
-    return f"update needs two real numbers y and u, got y = {y!r}, u = {u!r} at sample {n}; the estimate is unchanged."
+        if isinstance(v, np.ndarray) and v.size == 1 and v.dtype.kind in "iuf":
+            v = v.reshape(()).item()
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
+            what = "complex" if isinstance(v, (complex, np.complexfloating)) or (
+                isinstance(v, np.ndarray) and v.dtype.kind == "c") else type(v).__name__
+            raise SysidError(f"update: {name} must be one real number (the sample at time t), got {v!r} "
+                             f"({what}) at sample {n}; the estimate is unchanged.")
+        out.append(float(v))
+    return out[0], out[1]
+
+
+def _parameters(theta, d: int) -> np.ndarray:
+    """``initial_parameters`` as ``d`` finite real numbers."""
+    try:
+        a = np.asarray(theta)
+        a = a.astype(float).ravel() if a.dtype.kind in "biuf" else None
+    except (TypeError, ValueError):
+        a = None
+    if a is None or a.size != d or not np.all(np.isfinite(a)):
+        raise SysidError(f"initial_parameters must be {d} finite real numbers [a.., b.., c..], got {theta!r}.")
+    return a
 
 
 RecursiveARMAX = RecursiveARX
@@ -291,9 +419,10 @@ def rls(data: IDData, orders, forgetting: float = 1.0, initial_covariance: float
     orders : sequence of int
         ``[na, nb, nk]`` (ARX) or ``[na, nb, nc, nk]`` (ARMAX by extended LS).
     forgetting : float
-        ``lambda`` in (0, 1].
+        ``lambda`` in ``[d/(d+1), 1]`` for ``d`` parameters (see :func:`check_rls_options`).
     initial_covariance : float
-        ``c`` in ``P0 = c I``.
+        ``c`` in ``P0 = c I``; ``c |psi|^2`` over the record (``|psi|^2`` bounded by the
+        largest ``|y|`` and ``|u|``) must stay below ``forgetting / eps``.
     initial_parameters : array_like, optional
         ``theta(0)``.
 
@@ -301,8 +430,18 @@ def rls(data: IDData, orders, forgetting: float = 1.0, initial_covariance: float
     -------
     RLSResult
         With ``theta_``, ``theta_history`` (N, d), ``errors_`` and ``model_``.
+
+    Raises
+    ------
+    SysidError
+        For settings :func:`check_rls_options` refuses on this record's signals, and for
+        orders with as many parameters as samples.
     """
     data = check_data(data)
+    (na, nb, nc, nk), _, _ = check_rls_options(orders, forgetting, initial_covariance,
+                                               max_abs_y=float(np.max(np.abs(data.y))),
+                                               max_abs_u=float(np.max(np.abs(data.u))))
+    check_enough_data(data.N - max(na, nc, nk + nb - 1, 0), na + nb + nc, f"rls with orders {list(orders)}")
     est = RecursiveARX(orders, forgetting, initial_covariance, initial_parameters, Ts=data.Ts)
     N = data.N
     hist = np.empty((N, est.d))
@@ -314,4 +453,5 @@ def rls(data: IDData, orders, forgetting: float = 1.0, initial_covariance: float
     res = RLSResult(est, hist, errs)
     from ._diagnose import finish
     finish(res.model_, data, "final RLS model")   # says so when the last estimate is unstable or B = 0
+    res.model_.warnings = est.warnings + res.model_.warnings
     return res

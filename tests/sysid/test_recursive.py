@@ -1,4 +1,6 @@
 """RLS on the 4th-order pneumatic model of the online-identification paper (its eq. 10)."""
+import math
+
 import numpy as np
 import pytest
 from scipy.signal import lfilter
@@ -150,3 +152,122 @@ def test_extended_least_squares_armax():
     # plain RLS (ARX) on the same data is biased in a, which ELS removes
     arx_only = sysid.rls(sysid.iddata(y, u, 1.0), [2, 2, 1], forgetting=1.0, initial_covariance=100.0)
     assert abs(arx_only.theta_[0] + 1.5) > abs(res.theta_[0] + 1.5)
+
+
+# ------------------------------------------------------------------ settings that cannot give an estimate
+def _second_order(N=1000, seed=0):
+    """``A = [1, -1.5, 0.7]``, ``B = [0, 1, 0.5]``, PRBS input, output up to about 13."""
+    from sysid_helpers import simulate_poly
+    return simulate_poly([1, -1.5, 0.7], [0, 1, 0.5], N=N, sigma=0.1, seed=seed)
+
+
+def _c_limit(data, lam=1.0):
+    """Largest c that check_rls_options lets [2 2 1] RLS use on ``data``: c |psi|^2 < lambda / eps."""
+    psi2 = 2 * np.max(np.abs(data.y)) ** 2 + 2 * np.max(np.abs(data.u)) ** 2
+    return lam / np.finfo(float).eps / psi2
+
+
+@pytest.mark.parametrize("c", [1e308, 1e100, 1e16])
+def test_initial_covariance_beyond_the_digits_of_P_is_refused(c):
+    """c = 1e308 returned A = [1, -0.141, 0] (truth [1, -1.5, 0.7]) without a word: c |psi|^2 overflowed."""
+    with pytest.raises(sysid.SysidError, match=r"^initial_covariance c = .* too large for signals up to .*"
+                                               r"expected c < "):
+        sysid.rls(_second_order(), [2, 2, 1], initial_covariance=c)
+
+
+def test_initial_covariance_limit_is_where_the_first_update_keeps_no_digit():
+    data = _second_order()
+    limit = _c_limit(data)
+    with pytest.raises(sysid.SysidError, match="initial_covariance"):
+        sysid.rls(data, [2, 2, 1], initial_covariance=1.01 * limit)
+    res = sysid.rls(data, [2, 2, 1], initial_covariance=0.5 * limit)
+    np.testing.assert_allclose(res.model_.A, [1, -1.5, 0.7], atol=0.02)
+    assert res.model_.warnings == []
+
+
+@pytest.mark.parametrize("orders,d", [([2, 2, 1], 4), ([0, 1, 1], 1), ([4, 4, 0], 8), ([2, 2, 2, 1], 6)])
+def test_forgetting_with_a_memory_shorter_than_the_parameters_is_refused(orders, d):
+    """forgetting = 1e-300 ended in ZeroDivisionError, 1e-3 in NaN: the memory 1/(1 - lambda) must hold d + 1."""
+    data = _second_order()
+    low = d / (d + 1)
+    for lam in (1e-300, 1e-3, low * (1 - 1e-9)):
+        with pytest.raises(sysid.SysidError, match=rf"^forgetting must be in \[{low:.4g}, 1\] for {d} parameters"):
+            sysid.rls(data, orders, forgetting=lam)
+    res = sysid.rls(data, orders, forgetting=low)          # the limit itself is accepted
+    assert np.all(np.isfinite(res.theta_history)) and np.isfinite(res.noise_variance)
+
+
+def test_check_rls_options_is_the_recursions_validation():
+    assert sysid.check_rls_options([3, 3, 1], 0.99, 1000.0) == ((3, 3, 0, 1), 0.99, 1000.0)
+    assert sysid.check_rls_options([2, 2, 1, 1], np.float64(1.0), 10) == ((2, 2, 1, 1), 1.0, 10.0)
+    for kwargs, name in [(dict(forgetting=True), "forgetting"), (dict(forgetting="0.99"), "forgetting"),
+                         (dict(forgetting=0.5), "forgetting"), (dict(initial_covariance=math.inf), "initial_covariance"),
+                         (dict(initial_covariance=1 + 0j), "initial_covariance"),
+                         (dict(initial_covariance=0.0), "initial_covariance"),
+                         (dict(max_abs_y=0.1, max_abs_u=10.0, initial_covariance=1e15), "initial_covariance"),
+                         (dict(max_abs_y="big"), "max_abs_y")]:
+        with pytest.raises(sysid.SysidError, match=f"^{name}"):
+            sysid.check_rls_options([3, 3, 1], **kwargs)
+    # the paper's settings on paper 1's signals (position up to 0.1 m, valve command up to 10 V) pass
+    sysid.check_rls_options([5, 5, 1], 0.95, 10000.0, max_abs_y=0.1, max_abs_u=10.0)
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")   # numpy says it before sysid does
+def test_online_update_that_would_overflow_is_refused_and_changes_nothing():
+    est = sysid.RecursiveARX([2, 2, 1], initial_covariance=1e308)
+    est.update(10.0, 1.0)                      # psi = 0: nothing to overflow yet
+    theta, P, psi, ud, n = est.parameters, est.P, est._psi.copy(), list(est._udelay), est.n_updates
+    with pytest.raises(sysid.SysidError, match=r"^update: psi\^T P psi overflows at sample 1 .*initial_covariance"):
+        est.update(12.0, 2.0)
+    np.testing.assert_array_equal(est.parameters, theta)
+    np.testing.assert_array_equal(est.P, P)
+    np.testing.assert_array_equal(est._psi, psi)
+    assert list(est._udelay) == ud and est.n_updates == n
+
+
+def test_online_update_says_once_when_P_has_no_digit_left():
+    data = _second_order(N=200)
+    est = sysid.RecursiveARX([2, 2, 1], initial_covariance=1e20)
+    with pytest.warns(sysid.SysidWarning, match="cancels all 16 digits of P") as record:
+        est.partial_fit(data)
+    assert len([w for w in record if issubclass(w.category, sysid.SysidWarning)]) == 1
+    assert len(est.warnings) == 1 and "initial_covariance" in est.warnings[0]
+
+
+def test_covariance_windup_is_said_in_the_models_warnings():
+    """600 samples of constant input at forgetting 0.9: P grows by 0.9^-600 where u does not excite."""
+    rng = np.random.default_rng(0)
+    u = np.r_[np.sign(rng.standard_normal(300)), np.ones(600), np.sign(rng.standard_normal(300))]
+    y = lfilter([0, 1, 0.5], [1, -1.5, 0.7], u) + 0.01 * rng.standard_normal(u.size)
+    with pytest.warns(sysid.SysidWarning, match="grows like forgetting"):
+        res = sysid.rls(sysid.iddata(y, u, 1.0), [2, 2, 1], forgetting=0.9)
+    assert any("cancels all 16 digits" in w for w in res.model_.warnings)
+
+
+@pytest.mark.parametrize("y,u,name", [(1 + 1j, 1.0, "y"), (0.5, np.complex128(1.0), "u"),
+                                      (np.array([1 + 0j]), 1.0, "y"), (True, 1.0, "y")])
+def test_online_update_refuses_a_complex_sample_in_one_line(y, u, name):
+    est = sysid.RecursiveARX([1, 1, 1])
+    with pytest.raises(sysid.SysidError, match=f"^update: {name} must be one real number"):
+        est.update(y, u)
+    assert est.n_updates == 0 and not np.any(est.parameters)
+
+
+def test_online_update_takes_numpy_scalars_and_ints_as_the_same_floats():
+    data = _second_order(N=100)
+    a = sysid.RecursiveARX([2, 2, 1], forgetting=0.99)
+    b = sysid.RecursiveARX([2, 2, 1], forgetting=0.99)
+    for yk, uk in zip(data.y, data.u):
+        a.update(float(yk), float(uk))
+        b.update(np.float64(yk), np.int64(uk))       # the input is +-1
+    np.testing.assert_array_equal(a.parameters, b.parameters)
+
+
+def test_recursive_sample_time_and_orders_are_checked():
+    with pytest.raises(sysid.SysidError, match="Ts must be a positive number of seconds"):
+        sysid.RecursiveARX([1, 1, 1], Ts=True)
+    with pytest.raises(sysid.SysidError, match="initial_parameters must be 2 finite real numbers"):
+        sysid.RecursiveARX([1, 1, 1], initial_parameters=[0.5, np.nan])
+    short = sysid.iddata(np.arange(10.0), np.ones(10), 1.0)
+    with pytest.raises(sysid.SysidError, match=r"orders are too high for the data: rls with orders \[5, 5, 1\]"):
+        sysid.rls(short, [5, 5, 1])
