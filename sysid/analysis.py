@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._blas import one_blas_thread
-from ._checks import check_data, check_order
+from ._checks import check_data, check_enough_data, check_order
 from .arx import ARX, arx_regressors
 from .data import IDData
 from .errors import SysidError
@@ -168,12 +168,15 @@ def arxstruc(estimation: IDData, validation: IDData, orders) -> np.ndarray:
     """
     estimation, validation = check_data(estimation, "estimation"), check_data(validation, "validation")
     orders = np.atleast_2d(np.asarray(orders))
-    if orders.shape[1] != 3:
+    if orders.ndim != 2 or orders.shape[1] != 3:
         raise SysidError(f"orders must have rows [na, nb, nk], got shape {orders.shape}.")
     rows = []
-    for na, nb, nk in orders.tolist():
-        m = ARX(int(na), int(nb), int(nk))._fit(estimation, strict=False)  # a grid may hold degenerate orders
-        Phi, tgt, _ = arx_regressors(validation.y, validation.u, int(na), int(nb), int(nk))
+    for row in orders.tolist():
+        row = [int(v) if isinstance(v, float) and v.is_integer() else v for v in row]   # a float array's 2.0
+        na, nb, nk = (check_order(v, name) for v, name in zip(row, ("na", "nb", "nk")))
+        check_enough_data(validation.N - max(na, nk + nb - 1, 0), na + nb, f"validation of ARX[{na} {nb} {nk}]")
+        m = ARX(na, nb, nk)._fit(estimation, strict=False)  # a grid may hold degenerate orders
+        Phi, tgt, _ = arx_regressors(validation.y, validation.u, na, nb, nk)
         r = tgt - Phi @ m.parameters
         rows.append([float(r @ r) / r.size, na, nb, nk, r.size])
     return np.array(rows)
@@ -215,6 +218,7 @@ def delayest(data: IDData, na: int = 2, nb: int = 2, nk_min: int = 0, nk_max: in
     if nk_max < nk_min:
         raise SysidError(f"nk_max must be >= nk_min = {nk_min}, got {nk_max}.")
     n0 = max(na, nk_max + nb - 1)
+    check_enough_data(data.N - n0, na + nb, f"delayest with na = {na}, nb = {nb} and nk_max = {nk_max}")
     best, best_nk = np.inf, nk_min
     for nk in range(nk_min, nk_max + 1):
         Phi, tgt, n = arx_regressors(data.y, data.u, na, nb, nk)

@@ -3,7 +3,9 @@
 Discrete polynomials in ``q^-1`` (MATLAB layout) become z-domain
 numerator/denominator of equal length: ``B(q^-1)/A(q^-1) = (B z^n)/(A z^n)``.
 Only the input-output transfer ``G = B/(A F)`` is converted; the noise model
-is dropped.  Models from scipy/control come back as output-error
+is dropped.  A state-space :class:`~sysid.IDSS` stays in state space
+(``scipy.signal.dlti(A, B, C, D)``, ``control.ss``): its transfer function's
+polynomials would lose the poles of a high-order ``A``.  Models from scipy/control come back as output-error
 :class:`~sysid.polynomial.IDPoly` (``y = B/F u + e``).
 
 Input delays: a discrete model's delay ``nk`` is part of ``B`` (leading zeros)
@@ -21,6 +23,7 @@ import numpy as np
 
 from .errors import SysidError
 from .polynomial import IDPoly
+from .statespace import IDSS
 
 __all__ = ["to_scipy", "to_control", "from_scipy", "from_control"]
 
@@ -53,6 +56,8 @@ def _z_polys(model, pade_order=None, discrete=False):
 def to_scipy(model, pade_order=None, discrete=False):
     """``scipy.signal.dlti`` (or ``lti`` for continuous-time IDTF) of the input-output transfer.
 
+    A transfer function for IDPoly and IDTF, state space ``(A, B, C, D)`` for IDSS.
+
     Parameters
     ----------
     model : IDPoly, IDSS or IDTF
@@ -63,6 +68,8 @@ def to_scipy(model, pade_order=None, discrete=False):
         For an IDTF: return the exact ZOH ``dlti`` at ``model.Ts`` (delay in whole samples).
     """
     from scipy import signal
+    if isinstance(model, IDSS):
+        return signal.dlti(model.A, model.B, model.C, model.D, dt=model.Ts)
     num, den, ts = _z_polys(model, pade_order, discrete)
     if ts == 0:
         return signal.lti(num, den)
@@ -70,11 +77,13 @@ def to_scipy(model, pade_order=None, discrete=False):
 
 
 def to_control(model, pade_order=None, discrete=False):
-    """``control.TransferFunction`` of the input-output transfer (``dt = Ts``, or 0).
+    """``control.TransferFunction`` of the input-output transfer (``dt = Ts``, or 0); ``control.ss`` for IDSS.
 
     ``pade_order`` and ``discrete`` as in :func:`to_scipy` (python-control has no delays).
     """
     import control
+    if isinstance(model, IDSS):
+        return control.ss(model.A, model.B, model.C, model.D, model.Ts)
     num, den, ts = _z_polys(model, pade_order, discrete)
     return control.tf(num, den, ts)
 

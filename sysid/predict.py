@@ -1,8 +1,11 @@
 """Prediction, simulation and MATLAB-style ``compare`` fit.
 
-All models are evaluated through their polynomial form
-``A y = B/F u + C/D e`` (state-space and continuous-time models convert
-themselves with ``to_idpoly()``).
+Polynomial and continuous-time models are evaluated through their polynomial
+form ``A y = B/F u + C/D e`` (an :class:`~sysid.IDTF` converts itself with
+``to_idpoly()``); a state-space :class:`~sysid.IDSS` is evaluated in state
+space (:mod:`sysid.state_response`), since the characteristic polynomial of a
+high-order ``A`` loses its eigenvalues, so that what is simulated is the model
+whose poles ``model.poles()`` and its warnings report.
 
 Initial conditions: ``"zero"`` assumes zero input, output and noise before
 the first sample (the default of :func:`simulate` and :func:`predict`, as
@@ -21,14 +24,20 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.signal import lfilter
+from scipy.signal import fftconvolve, lfilter
 
 from ._checks import check_data
-from .data import IDData
+from .data import IDData, as_signal
 from .errors import SysidError
 from .polynomial import IDPoly
+from .state_response import free_response_rows, predict_states, simulate_states
+from .statespace import IDSS
 
 __all__ = ["predict", "simulate", "compare", "fit_percent"]
+
+DIRECT_HORIZON = 64
+"""Longest horizon (samples) predicted by filtering with the predictor polynomials directly, ``O(N k)``;
+longer ones convolve the ``k`` impulse-response terms by FFT, ``O(N log N)`` (equal to rounding)."""
 
 
 def as_idpoly(model, Ts=None) -> IDPoly:
@@ -46,10 +55,29 @@ def as_idpoly(model, Ts=None) -> IDPoly:
         if conv is None:
             raise SysidError(f"model must be a sysid model (IDPoly, IDSS or IDTF), got {type(model).__name__}.")
         m = conv()
-    if Ts is not None and not math.isclose(float(m.Ts), float(Ts), rel_tol=1e-9):
-        raise SysidError(f"model is sampled at Ts = {m.Ts:g} s but the data at Ts = {Ts:g} s: resample the data "
-                         f"or estimate the model at the data's sample time.")
+    if Ts is not None:
+        _check_sample_time(m.Ts, Ts)
     return m
+
+
+def _check_sample_time(model_Ts: float, data_Ts: float) -> None:
+    if not math.isclose(float(model_Ts), float(data_Ts), rel_tol=1e-9):
+        raise SysidError(f"model is sampled at Ts = {model_Ts:g} s but the data at Ts = {data_Ts:g} s: resample the "
+                         f"data or estimate the model at the data's sample time.")
+
+
+def _check_finite_ss(yhat, model: IDSS, what: str):
+    """As :func:`_check_finite`, with the eigenvalues the state-space evaluation ran on."""
+    if np.all(np.isfinite(yhat)):
+        return
+    if "prediction" in what:
+        r = float(np.max(np.abs(np.linalg.eigvals(model.A - model.K @ model.C))))
+        if r >= 1.0:
+            raise SysidError(f"the model's predictor is unstable (an eigenvalue of A - K C has |z| = {r:.6g}): its "
+                             f"{what} overflows over {yhat.size} samples; use a model with a stable predictor.")
+    r = float(np.max(np.abs(model.poles())))
+    raise SysidError(f"model is unstable (a pole has |z| = {r:.6g} > 1): its {what} overflows over "
+                     f"{yhat.size} samples; use k-step prediction (k=1) or a stable model.")
 
 
 def _check_finite(yhat, m: IDPoly, what: str):
@@ -98,25 +126,23 @@ def simulate(model, data_or_u, initial: str = "zero") -> np.ndarray:
     ndarray, shape (N,)
         Simulated output.
     """
+    state_space = isinstance(model, IDSS)
     if isinstance(data_or_u, IDData):
-        m = as_idpoly(model, data_or_u.Ts)
+        if state_space:
+            _check_sample_time(model.Ts, data_or_u.Ts)
+        else:
+            m = as_idpoly(model, data_or_u.Ts)
         u = data_or_u.u
     else:
-        m = as_idpoly(model)
-        try:
-            u = np.asarray(data_or_u, dtype=float)
-        except (TypeError, ValueError):
-            raise SysidError(f"u must be an IDData or a numeric 1-D array, got {type(data_or_u).__name__}.") from None
-        if u.ndim > 1 and u.size != max(u.shape):
-            raise SysidError(f"u must be a 1-D array (single input), got shape {u.shape}.")
-        u = u.ravel()
-        if not np.all(np.isfinite(u)):
-            i = int(np.flatnonzero(~np.isfinite(u))[0])
-            raise SysidError(f"u must be finite, but sample {i} is {u[i]}.")
+        if not state_space:
+            m = as_idpoly(model)
+        u = as_signal(data_or_u, "u")
     if initial not in ("zero", "estimate"):
         raise SysidError(f"initial must be 'zero' or 'estimate', got {initial!r}.")
     if initial == "estimate" and not isinstance(data_or_u, IDData):
         raise SysidError("initial='estimate' needs an IDData (the measured output is used).")
+    if state_space:
+        return _simulate_ss(model, u, data_or_u.y if initial == "estimate" else None)
     num, den = m.G()
     with np.errstate(over="ignore", invalid="ignore"):
         ys = lfilter(num, den, u)
@@ -134,6 +160,22 @@ def simulate(model, data_or_u, initial: str = "zero") -> np.ndarray:
     return ys
 
 
+def _simulate_ss(model: IDSS, u, y=None) -> np.ndarray:
+    """Simulation of an IDSS in state space; with ``y``, plus the least-squares initial state's response."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        ys = simulate_states(model.A, model.B, model.C, model.D, u)
+    _check_finite_ss(ys, model, "simulation")
+    if y is None:
+        return ys
+    with np.errstate(over="ignore", invalid="ignore"):
+        basis = free_response_rows(model.A, model.C, u.size)
+    _check_finite_ss(basis, model, "free response")
+    norms = np.sqrt(np.einsum("ij,ij->j", basis, basis))
+    norms[norms == 0] = 1.0
+    x0, *_ = np.linalg.lstsq(basis / norms, y - ys, rcond=None)
+    return ys + (basis / norms) @ x0
+
+
 def predict(model, data: IDData, k=1) -> np.ndarray:
     """k-step-ahead prediction ``y_hat(t | t-k)``; ``k = inf`` is simulation.
 
@@ -147,22 +189,33 @@ def predict(model, data: IDData, k=1) -> np.ndarray:
     data : IDData
         Measured input and output, shape (N,) each.
     k : int or math.inf
-        Prediction horizon in samples, ``>= 1``.
+        Prediction horizon in samples, ``>= 1``.  A horizon of ``N`` samples or more
+        is the simulation (as ``k = inf``): no measured output lies ``k`` samples
+        before any sample of the record, so ``y_hat(t | t-k)`` uses none, and it is
+        computed so (the predictor polynomials of such a ``k`` would hold ``k`` terms).
 
     Returns
     -------
     ndarray, shape (N,)
     """
     data = check_data(data)
-    if k == math.inf or k is None:
+    if k is None or (isinstance(k, (int, float, np.integer, np.floating)) and k == math.inf):
         return simulate(model, data)
     try:
-        ok = not isinstance(k, bool) and float(k).is_integer() and k >= 1
-    except (TypeError, ValueError):
+        ok = not isinstance(k, (bool, np.bool_)) and float(k).is_integer() and k >= 1
+    except (TypeError, ValueError, OverflowError):
         ok = False
     if not ok:
         raise SysidError(f"k must be an integer >= 1 or math.inf, got {k!r}.")
+    if k >= data.N:
+        return simulate(model, data)
     k = int(k)
+    if isinstance(model, IDSS):
+        _check_sample_time(model.Ts, data.Ts)
+        with np.errstate(over="ignore", invalid="ignore"):
+            yhat = predict_states(model.A, model.B, model.C, model.D, model.K, data.y, data.u, k)
+        _check_finite_ss(yhat, model, f"{k}-step prediction")
+        return yhat
     m = as_idpoly(model, data.Ts)
     AD = np.convolve(m.A, m.D)
     delta = np.zeros(k)
@@ -175,7 +228,12 @@ def predict(model, data: IDData, k=1) -> np.ndarray:
     num_y = _pad(m.C, n) - _pad(hAD, n)
     num_y[:k] = 0.0  # exact zeros by construction; remove round-off
     with np.errstate(over="ignore", invalid="ignore"):
-        yhat = lfilter(num_u, den, data.u) + lfilter(num_y, m.C, data.y)
+        if k <= DIRECT_HORIZON:
+            yhat = lfilter(num_u, den, data.u) + lfilter(num_y, m.C, data.y)
+        else:  # the same filters: hbar (k terms) by FFT after D B/(C F), num_y's k leading zeros as a shift
+            N = data.N
+            yhat = fftconvolve(hbar, lfilter(np.convolve(m.D, m.B), den, data.u))[:N]
+            yhat[k:] += lfilter(num_y[k:], m.C, data.y)[:N - k]
     _check_finite(yhat, m, f"{k}-step prediction")
     return yhat
 
@@ -186,7 +244,9 @@ def fit_percent(y, yhat) -> float:
     Undefined for a constant ``y`` (the denominator is zero; MATLAB returns -Inf
     or NaN): refused with :class:`SysidError`.
     """
-    y = np.asarray(y, dtype=float)
+    y, yhat = as_signal(y, "y"), as_signal(yhat, "yhat")
+    if y.size != yhat.size:
+        raise SysidError(f"y and yhat must have the same length, got {y.size} and {yhat.size} samples.")
     den = float(np.linalg.norm(y - y.mean()))
     if not den > 0.0:
         raise SysidError(f"y is constant ({y.size} samples equal to {y[0]:.6g}): the fit % "

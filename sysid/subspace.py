@@ -40,6 +40,7 @@ from ._diagnose import finish, growth_over, problems
 from .data import IDData
 from .errors import SysidError
 from .polynomial import is_stable_poly
+from .state_response import predict_states
 from .statespace import IDSS
 
 __all__ = ["N4SID", "n4sid"]
@@ -172,6 +173,10 @@ class N4SID:
         model.covariance, model.loss = _pem_covariance(model, data.y, data.u)
         if not np.isfinite(model.loss):
             model.loss = best["loss"] * sy ** 2
+        if not np.isfinite(model.loss):   # a high-order polynomial form lost the poles: predict in state space
+            with np.errstate(all="ignore"):
+                eps = data.y - predict_states(A, B, Cm, D, K, data.y, data.u, 1)
+            model.loss = float(eps @ eps) / N if np.all(np.isfinite(eps)) else float("inf")
         model.n_samples = N
         finish(model, data, f"n4sid model (nx = {A.shape[0]})", focus="simulation", fit=best["sim_fit"])
         self.model_ = model
@@ -411,8 +416,9 @@ def _pem_covariance(model: IDSS, y, u):
     from .pem import prediction_error_jacobian, prediction_errors
     p = model.to_idpoly()
     eps, v, w = prediction_errors(p, y, u)
-    V = float(eps @ eps)
-    if not np.isfinite(V):  # unstable predictor: no prediction-error covariance
+    with np.errstate(over="ignore", invalid="ignore"):
+        V = float(eps @ eps)
+    if not np.isfinite(V):  # unstable predictor (or its polynomial form): no prediction-error covariance
         return None, float("nan")
     J = prediction_error_jacobian(p, y, u, eps, v, w)
     try:

@@ -66,3 +66,14 @@ def test_round_trip_scipy_and_control():
     np.testing.assert_allclose(control.dcgain(g), 0.4 / 0.3)
     with pytest.raises(sysid.SysidError, match="discrete-time"):
         sysid.from_control(control.tf([1], [1, 1]))
+
+
+def test_delay_scan_and_order_grid_beyond_the_data_are_refused():
+    """nk_max or a grid order past the record ended in numpy's 'negative dimensions' ValueError."""
+    d = simulate_poly(A, B, N=100, sigma=0.2, seed=3)
+    with pytest.raises(sysid.SysidError, match="^orders are too high for the data: delayest .* nk_max = 150"):
+        sysid.delayest(d, nk_max=150)
+    with pytest.raises(sysid.SysidError, match=r"^orders are too high for the data: validation of ARX\[2 2 60\]"):
+        sysid.arxstruc(d, d[:50], [[2, 2, 60]])
+    with pytest.raises(sysid.SysidError, match="^nb must be an integer"):
+        sysid.arxstruc(d, d, [[2, 2.5, 1]])

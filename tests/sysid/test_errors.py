@@ -109,6 +109,12 @@ def _bad_calls():
         "nx": lambda: sysid.n4sid(d, 0),
         "forgetting": lambda: sysid.rls(d, [1, 1, 1], forgetting=0.0),
         "data": lambda: sysid.compare(m, d),
+        "initial_covariance": lambda: sysid.rls(d, [1, 1, 1], initial_covariance=1e308),
+        "max_abs_u": lambda: sysid.check_rls_options([1, 1, 1], max_abs_u=[1.0]),
+        "tstart": lambda: sysid.iddata(np.zeros(10), np.zeros(10), 1.0, tstart=math.inf),
+        "nk_max": lambda: sysid.delayest(d, nk_max=500),
+        "yhat": lambda: sysid.fit_percent(d.y, d.y[1:]),
+        "num": lambda: sysid.IDTF(np.ones(3), np.ones(2)),
     }
 
 

@@ -54,3 +54,53 @@ def test_estimated_initial_condition_removes_transient():
     assert sysid.compare(d, m, initial="estimate") == pytest.approx(100.0, abs=1e-6)
     assert sysid.compare(d, m) == pytest.approx(100.0, abs=1e-6)  # MATLAB's default: 'e'
     assert sysid.compare(d, m, initial="zero") < 99.0
+
+
+# ------------------------------------------------------------------ horizons
+def test_horizon_beyond_the_data_is_the_simulation_without_allocating_it():
+    """k = 10**9 on 3000 samples allocated 7.45 GiB (the k impulse-response terms)."""
+    import tracemalloc
+    d = simulate_poly([1, -1.5, 0.7], [0, 1, 0.5], C=[1, 0.3], N=300, sigma=0.1, seed=6)
+    m = sysid.armax(d, [2, 2, 1, 1])
+    sim = sysid.simulate(m, d)
+    tracemalloc.start()
+    try:
+        for k in (300, 10**6, 10**9, 1e20):
+            np.testing.assert_array_equal(sysid.predict(m, d, k), sim)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 1e6, peak                                   # bytes: a few arrays of 300 samples
+    assert sysid.compare(d, m, k=10**9) == sysid.compare(d, m, initial="zero")
+    # one sample short of the record: only the last sample sees an output, and the answer is the same
+    np.testing.assert_allclose(sysid.predict(m, d, 299)[:299], sim[:299], rtol=0, atol=1e-12)
+
+
+def test_long_horizon_by_fft_equals_the_direct_filters(monkeypatch):
+    d = simulate_poly([1, -1.5, 0.7], [0, 1, 0.5], C=[1, 0.3], N=600, sigma=0.1, seed=7)
+    m = sysid.armax(d, [2, 2, 1, 1])
+    module = __import__("sys").modules["sysid.predict"]
+    for k in (module.DIRECT_HORIZON + 1, 200, 599):
+        fast = sysid.predict(m, d, k)
+        monkeypatch.setattr(module, "DIRECT_HORIZON", 10**9)
+        direct = sysid.predict(m, d, k)
+        monkeypatch.undo()
+        np.testing.assert_allclose(fast, direct, rtol=0, atol=1e-12 * np.max(np.abs(direct)))
+
+
+def test_long_horizon_on_a_long_record_takes_milliseconds():
+    """k = 10 000 on 50 000 samples: 15 s filtering with the k-term polynomials (O(N k)), 15 ms by FFT."""
+    import time
+    d = simulate_poly([1, -1.5, 0.7], [0, 1, 0.5], C=[1, 0.3], N=50000, sigma=0.1, seed=8)
+    m = sysid.armax(d[:2000], [2, 2, 1, 1])
+    t0 = time.perf_counter()
+    yhat = sysid.predict(m, d, 10000)
+    assert time.perf_counter() - t0 < 2.0
+    np.testing.assert_allclose(yhat[:10000], sysid.simulate(m, d)[:10000], atol=1e-9)
+
+
+def test_fit_percent_checks_its_arrays():
+    with pytest.raises(sysid.SysidError, match="^y and yhat must have the same length"):
+        sysid.fit_percent(np.arange(5.0), np.arange(4.0))
+    with pytest.raises(sysid.SysidError, match="^yhat must be real"):
+        sysid.fit_percent(np.arange(5.0), np.arange(5.0) + 1j)

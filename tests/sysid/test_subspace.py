@@ -1,6 +1,7 @@
 """Known innovations state-space systems: n4sid order, poles and 3-sigma coverage."""
 import numpy as np
 import pytest
+from scipy import signal
 
 import sysid
 from sysid.statespace import IDSS
@@ -94,3 +95,40 @@ def test_n4sid_rejects_too_short_data():
     d = _ss_data(0, N=40)
     with pytest.raises(sysid.SysidError, match="orders are too high"):
         sysid.n4sid(d, 4)
+
+
+# ------------------------------------------------------------------ evaluated as state space
+def test_high_order_model_is_simulated_as_the_model_its_poles_describe():
+    """n4sid(data, 100): A's eigenvalues are inside |z| = 0.9998, but compare refused 'a pole has |z| = 3.2'
+    (the characteristic polynomial of a 100x100 A loses them) and the MSE read inf."""
+    from sysid_helpers import simulate_poly
+    d = simulate_poly([1, -1.5, 0.7], [0, 1, 0.5], N=3000, sigma=0.1)
+    m = sysid.n4sid(d, 100)
+    assert np.max(np.abs(m.poles())) < 1.0
+    fit = sysid.compare(d, m)                                  # simulated, initial state estimated
+    assert fit == pytest.approx(m.report["fit_percent"], abs=1e-6) and fit > 90.0
+    assert sysid.compare(d, m, k=1) > fit                      # one-step prediction: better still
+    assert np.isfinite(m.loss) and m.loss < np.var(d.y)
+    assert sysid.resid(d, m).residuals.size == d.N
+    assert isinstance(sysid.to_scipy(m), signal.dlti) and sysid.to_scipy(m).A.shape == (100, 100)
+
+
+def test_state_space_evaluation_equals_the_polynomial_form_at_low_order():
+    d = _ss_data(3)
+    est, val = d[:1500], d[1500:]
+    for m in (sysid.n4sid(est, 2), sysid.ssest(est, 2)):
+        p = m.to_idpoly()
+        for a, b in [(sysid.simulate(m, val), sysid.simulate(p, val)),
+                     (sysid.simulate(m, val, initial="estimate"), sysid.simulate(p, val, initial="estimate")),
+                     (sysid.predict(m, val, 1), sysid.predict(p, val, 1)),
+                     (sysid.predict(m, val, 7), sysid.predict(p, val, 7))]:
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-10 * np.max(np.abs(b)))
+        w = np.array([0.5, 5.0, 50.0])
+        np.testing.assert_allclose(m.freqresp(w), p.freqresp(w), rtol=1e-10)
+
+
+def test_unstable_state_space_model_names_its_own_eigenvalue():
+    A = np.array([[1.5, 0.0], [0.0, 0.5]])
+    m = IDSS(A, np.ones((2, 1)), np.ones((1, 2)), np.zeros((1, 1)), np.zeros((2, 1)), Ts=0.01)
+    with pytest.raises(sysid.SysidError, match=r"model is unstable \(a pole has \|z\| = 1.5 > 1\)"):
+        sysid.compare(_ss_data(0), m)
