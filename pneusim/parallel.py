@@ -78,8 +78,8 @@ def executor_map(func: Callable, tasks: Sequence[tuple], lost: Callable, workers
     """
     bar = None
     if progress:
-        from tqdm import tqdm   # ~0.1 s to import; only a run with a progress bar needs it
-        bar = tqdm(total=len(tasks), desc=desc, unit="run", mininterval=0.5)
+        from .progress import progress_bar   # a bar on a terminal, lines in a log
+        bar = progress_bar(len(tasks), desc=desc, unit="run", mininterval=0.5)
     try:
         if dask:
             yield from _dask_map(func, tasks, lost, workers, dask, bar)

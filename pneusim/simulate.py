@@ -166,9 +166,9 @@ def _rest_before_warmup(plant: SimulatedPlant, rig: Rig, experiment: Experiment)
 
 
 def _progress_bar(total: int):
-    from tqdm import tqdm   # ~0.1 s to import; only a run with a progress bar needs it
+    from .progress import progress_bar   # a bar on a terminal, lines in a log
 
-    return tqdm(total=total, desc="simulate", unit="sample", leave=False, mininterval=0.5)
+    return progress_bar(total, desc="simulate", unit="sample", leave=False, mininterval=0.5)
 
 
 def _run_compiled(plant: SimulatedPlant, loop, experiment: Experiment, n_warm: int, trace: _Trace,

@@ -151,9 +151,9 @@ class FrictionStudy:
                                    "give one file per pressure")
         bar = None
         if progress:
-            from tqdm import tqdm
+            from ..progress import progress_bar
 
-            bar = tqdm(total=sum(len(g) for g in groups.values()), desc="friction folds", unit="fold", leave=False)
+            bar = progress_bar(sum(len(g) for g in groups.values()), desc="friction folds", unit="fold", leave=False)
         self.seals_ = []
         for seal, group in groups.items():
             group = sorted(group, key=lambda t: t.mean_pressure_gauge_Pa)
