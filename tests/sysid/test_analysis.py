@@ -69,7 +69,7 @@ def test_round_trip_scipy_and_control():
 
 
 def test_delay_scan_and_order_grid_beyond_the_data_are_refused():
-    """nk_max or a grid order past the record ended in numpy's 'negative dimensions' ValueError."""
+    """nk_max or a grid order past the record would reach numpy as a 'negative dimensions' ValueError."""
     d = simulate_poly(A, B, N=100, sigma=0.2, seed=3)
     with pytest.raises(sysid.SysidError, match="^orders are too high for the data: delayest .* nk_max = 150"):
         sysid.delayest(d, nk_max=150)

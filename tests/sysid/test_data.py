@@ -112,7 +112,7 @@ def test_load_recording_requires_time_and_finite_cells(tmp_path):
 
 # ------------------------------------------------------------------ values the containers refuse
 def test_complex_signal_is_refused_not_cast():
-    """numpy's cast dropped the imaginary part with only a ComplexWarning."""
+    """numpy's cast would drop the imaginary part with only a ComplexWarning."""
     y = np.ones(10, complex)
     y[4] = 1 + 2j
     with warnings.catch_warnings():
@@ -132,7 +132,7 @@ def test_text_signal_is_refused_not_parsed():
 
 @pytest.mark.parametrize("ts", [True, False, np.True_, "0.5", [0.5], 1 + 0j, math.inf])
 def test_sample_time_must_be_one_real_number(ts):
-    """Ts = True was taken as 1 s, '0.5' parsed."""
+    """float() would take Ts = True as 1 s and parse '0.5'."""
     with pytest.raises(sysid.SysidError, match=r"^Ts must be a positive number of seconds"):
         sysid.iddata(np.zeros(10), np.zeros(10), ts)
 

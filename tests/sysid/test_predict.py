@@ -58,7 +58,7 @@ def test_estimated_initial_condition_removes_transient():
 
 # ------------------------------------------------------------------ horizons
 def test_horizon_beyond_the_data_is_the_simulation_without_allocating_it():
-    """k = 10**9 on 3000 samples allocated 7.45 GiB (the k impulse-response terms)."""
+    """The k impulse-response terms of the predictor would take 7.45 GiB for k = 10**9."""
     import tracemalloc
     d = simulate_poly([1, -1.5, 0.7], [0, 1, 0.5], C=[1, 0.3], N=300, sigma=0.1, seed=6)
     m = sysid.armax(d, [2, 2, 1, 1])

@@ -169,7 +169,7 @@ def _c_limit(data, lam=1.0):
 
 @pytest.mark.parametrize("c", [1e308, 1e100, 1e16])
 def test_initial_covariance_beyond_the_digits_of_P_is_refused(c):
-    """c = 1e308 returned A = [1, -0.141, 0] (truth [1, -1.5, 0.7]) without a word: c |psi|^2 overflowed."""
+    """Unchecked, c = 1e308 gives A = [1, -0.141, 0] (truth [1, -1.5, 0.7]) without a word: c |psi|^2 overflows."""
     with pytest.raises(sysid.SysidError, match=r"^initial_covariance c = .* too large for signals up to .*"
                                                r"expected c < "):
         sysid.rls(_second_order(), [2, 2, 1], initial_covariance=c)
@@ -187,7 +187,7 @@ def test_initial_covariance_limit_is_where_the_first_update_keeps_no_digit():
 
 @pytest.mark.parametrize("orders,d", [([2, 2, 1], 4), ([0, 1, 1], 1), ([4, 4, 0], 8), ([2, 2, 2, 1], 6)])
 def test_forgetting_with_a_memory_shorter_than_the_parameters_is_refused(orders, d):
-    """forgetting = 1e-300 ended in ZeroDivisionError, 1e-3 in NaN: the memory 1/(1 - lambda) must hold d + 1."""
+    """Unchecked, forgetting = 1e-300 ends in ZeroDivisionError, 1e-3 in NaN: the memory 1/(1 - lambda) must hold d + 1."""
     data = _second_order()
     low = d / (d + 1)
     for lam in (1e-300, 1e-3, low * (1 - 1e-9)):

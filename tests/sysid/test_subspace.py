@@ -99,8 +99,8 @@ def test_n4sid_rejects_too_short_data():
 
 # ------------------------------------------------------------------ evaluated as state space
 def test_high_order_model_is_simulated_as_the_model_its_poles_describe():
-    """n4sid(data, 100): A's eigenvalues are inside |z| = 0.9998, but compare refused 'a pole has |z| = 3.2'
-    (the characteristic polynomial of a 100x100 A loses them) and the MSE read inf."""
+    """n4sid(data, 100): A's eigenvalues are inside |z| = 0.9998, but the roots of its characteristic polynomial
+    reach |z| = 3.2, so a simulation of the polynomial form overflows and its MSE is inf."""
     from sysid_helpers import simulate_poly
     d = simulate_poly([1, -1.5, 0.7], [0, 1, 0.5], N=3000, sigma=0.1)
     m = sysid.n4sid(d, 100)

@@ -45,7 +45,7 @@ def test_given_delay_and_simulation_fit():
     assert sysid.compare(d, m) > 95.0
     assert m.to_idpoly().nk == 3
     with pytest.raises(sysid.SysidError, match="input delay of 0.1 s"):
-        sysid.to_control(m)              # python-control has no delays: not dropped silently (issue 13)
+        sysid.to_control(m)              # python-control has no delays: not dropped silently
     g = sysid.to_control(m, pade_order=2)
     assert g.dt == 0 and np.isclose(float(np.real(g(0))), m.dcgain())
 

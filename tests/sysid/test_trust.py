@@ -1,4 +1,4 @@
-"""Issue 13 (sysid): no wrong answer without a word, no traceback for a user mistake.
+"""No wrong answer without a word, no traceback for a user mistake.
 
 The closed-loop recording is the one the README's first command writes
 (``pneusim simulate --rig paper2-enfield --input multisine --loop closed --seed 1``).
@@ -34,21 +34,22 @@ def loop_data(tmp_path_factory):
 
 @pytest.mark.parametrize("nx", [2, 3, 4])
 def test_fixed_order_n4sid_on_closed_loop_recording(loop_data, nx):
-    """Before: |z| 1.02-1.06, B 1e-47..1e-131, compare about 0 %. Now: stable or marginal A, real B."""
+    """A stable or marginal A and a B that is not numerically zero (open-loop-biased estimates of these data have
+    |z| 1.02-1.06, B 1e-47..1e-131 and compare about 0 %)."""
     est, val = sysid.load_recording(loop_data).detrend().split(6000)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sysid.SysidWarning)   # order 2 keeps a 1.0012 integrator: said
         m = sysid.n4sid(est, nx)
     assert np.max(np.abs(m.poles())) < 1.002
     assert np.max(np.abs(m.to_idpoly().B)) > 1e-4             # m/V per sample: not numerically zero
-    assert sysid.compare(val, m) > 85.0                       # old: -0.2 to -0.4 %
+    assert sysid.compare(val, m) > 85.0                       # a biased estimate: -0.2 to -0.4 %
     assert m.report["fit_percent"] > 80.0
     for msg in m.warnings:
         assert "unstable" in msg
 
 
 def test_unstable_arx_warns_and_compare_says_why(loop_data):
-    """Not detrended, first 6000 samples: ARX[3 3 1] has a pole at 1.95 (before: LinAlgError in compare)."""
+    """Not detrended, first 6000 samples: ARX[3 3 1] has a pole at 1.95 (compare says why it cannot simulate it)."""
     data = sysid.load_recording(loop_data)
     est, val = data[:6000], data[6000:]
     with pytest.warns(sysid.SysidWarning, match=r"ARX\[3 3 1\] model is unstable"):
