@@ -136,13 +136,16 @@ class PhysicalFit:
         """Fit ``recording``: checks and split, pre-fit from each start, whole fit, rescue routes, uncertainty,
         validation, result (``warm_start``: a refit from that fit of the same recording, no pre-fit and no
         rescue).  Raises :class:`FitError` like :func:`~pneusim.fit.fit_recording`."""
-        run = _Run(self, recording, warm_start, start_values)
+        run = _Run(self, recording, warm_start, start_values)                 # checks and split
         try:
             if warm_start is None:
-                best = self._rescue(run, self._fit_from_starts(run))
+                best = self._fit_from_starts(run)                             # pre-fit and whole fit, each start
+                best = self._rescue(run, best)                                # rescue routes
             else:
-                best = self._refit_warm(run, warm_start)
-            return self._result(run, best)
+                best = self._refit_warm(run, warm_start)                      # whole fit from the warm fit
+            estimate, uncertainty = self._uncertainty(run, best)
+            validation = self._validation(run, estimate, uncertainty)
+            return self._build_result(run, best, estimate, uncertainty, validation)
         finally:
             run.close()
 
@@ -327,11 +330,12 @@ class PhysicalFit:
         return res
 
     # ---------------------------------------------------------------- uncertainty, validation and result
-    def _result(self, run: "_Run", res) -> FitResult:
-        """Uncertainty at the fit ``res``, validation, and the :class:`FitResult`."""
-        pb, setup, recording = run.pb, run.setup, run.recording
+    def _uncertainty(self, run: "_Run", res):
+        """``(estimate, uncertainty)`` at the fit ``res``: the parameter vector (SI) and the covariance's dict
+        (:func:`.uncertainty.covariance`); the continuity defects left open go to ``run.defect_sum_squares``."""
+        pb = run.pb
         if not np.isfinite(res.objective):
-            raise FitError(f"{_name(recording)}: the model could not be integrated at the optimiser's last point "
+            raise FitError(f"{_name(run.recording)}: the model could not be integrated at the optimiser's last point "
                            f"(IPOPT: {res.status}); check the rig file and the effects")
         theta, _ = pb.split(res.v)
         estimate = pb.params_of(theta)
@@ -339,19 +343,28 @@ class PhysicalFit:
         # the continuity defects left open at the optimum (state-scaled): a fit that ended in the penalty form
         # bought part of its residual with them, which a comparison of residuals alone would reward
         defects = pb.evaluate(res.v, derivatives=False)["g"]
-        defect_sum_squares = float(np.dot(defects, defects)) if np.all(np.isfinite(defects)) else float("inf")
+        run.defect_sum_squares = float(np.dot(defects, defects)) if np.all(np.isfinite(defects)) else float("inf")
         pb.close()
         run.say("uncertainty: Gauss-Newton covariance done")
-        n_est = setup.n_est
-        x_boundary = uncertainty["states"][n_est - 1].copy()
-        validation = self.stages.validate(setup.model, estimate, recording, n_est, x_boundary, setup.delay_s,
-                                          setup.rig.stroke_m, self.rtol)
+        return estimate, uncertainty
+
+    def _validation(self, run: "_Run", estimate, uncertainty: dict) -> dict:
+        """The fitted model over the validation part, from the state the fit estimated at its start."""
+        setup = run.setup
+        x_boundary = uncertainty["states"][setup.n_est - 1].copy()
+        return self.stages.validate(setup.model, estimate, run.recording, setup.n_est, x_boundary, setup.delay_s,
+                                    setup.rig.stroke_m, self.rtol)
+
+    @staticmethod
+    def _build_result(run: "_Run", res, estimate, uncertainty: dict, validation: dict) -> FitResult:
+        """The :class:`FitResult`: estimates, standard errors, correlations, validation, the solver's path."""
+        setup = run.setup
         result = FitResult.build(
-            recording=recording, rig=setup.rig, model=setup.model, free=setup.free,
+            recording=run.recording, rig=setup.rig, model=setup.model, free=setup.free,
             parameters=_estimates(setup, estimate, uncertainty),
             correlation=uncertainty["correlation"][:len(setup.free), :len(setup.free)], params_vector=estimate,
-            n_estimation=n_est, sigma=uncertainty["sigma"], noise_std=setup.sigma, validation=validation,
-            solver=run.solver_info(res, defect_sum_squares), estimation_states=uncertainty["states"])
+            n_estimation=setup.n_est, sigma=uncertainty["sigma"], noise_std=setup.sigma, validation=validation,
+            solver=run.solver_info(res), estimation_states=uncertainty["states"])
         run.say(f"done in {result.solver['seconds']:.1f} s: validation fit {result.fit_percent:.2f} %, normalised "
                 f"residual {result.normalised_residual:.3g} (noise level 1)"
                 + ("" if result.converged_to_noise else " -- ABOVE NOISE, see the warnings"))
@@ -379,6 +392,7 @@ class _Run:
         self.first_at_start = None
         self.attempts, self.fits = [], []
         self.tracked = self.predicted = None
+        self.defect_sum_squares = float("nan")
 
     def problem(self, stop: int, segment: int | None = None, start: int = 0):
         """``(problem, lower, upper)`` of samples ``start`` to ``stop - 1`` (:meth:`.setup.FitSetup.problem`)."""
@@ -401,11 +415,11 @@ class _Run:
                                      penalty=PENALTY_WEIGHT)
         return done, normalised_rms(self.pb, done)
 
-    def solver_info(self, res, defect_sum_squares: float) -> dict:
+    def solver_info(self, res) -> dict:
         """The result's ``solver`` dict: the final solver's status and counts, the path taken, the seconds."""
         return {"status": res.status, "ipopt_success": res.success, "iterations": res.iterations,
                 "seconds": time.perf_counter() - self.started, "ipopt_seconds": res.seconds,
-                "max_defect": res.max_defect, "defect_sum_squares": defect_sum_squares,
+                "max_defect": res.max_defect, "defect_sum_squares": self.defect_sum_squares,
                 "prefit_attempts": self.attempts, "tracked_route": self.tracked,
                 "prediction_error_route": self.predicted, "formulation": res.formulation, "warm_start": self.warm,
                 "segments": int(self.pb.n_segments), "segment_samples": self.setup.seg}
