@@ -49,7 +49,7 @@ from ..recording import Recording
 from ..rig import Rig
 from .constrained import settle_gauss_newton, solve_ipopt_exact
 from .initial import better_first_state, initial_starts
-from .progress import Progress, rounds_text, routes_text
+from .stage_lines import StageLines, rounds_text, routes_text
 from .rescue_routes import prediction_error_route, short_segments_route, tracked_route
 from .result import FitResult, ParameterEstimate
 from .rules import (ABOVE_NOISE_WARNING, IPOPT_MAX_ITER, MODEL_SHORT, PENALTY_WEIGHT, PREFIT_SAMPLES, PREFIT_STARTS,
@@ -377,7 +377,7 @@ class _Run:
 
     def __init__(self, options: PhysicalFit, recording: Recording, warm_start, start_values):
         self.started = time.perf_counter()
-        self.say = Progress(options.quiet and not options.verbose, self.started)
+        self.say = StageLines(options.quiet and not options.verbose, self.started)
         self.options, self.recording, self.warm = options, recording, warm_start is not None
         validation_fraction = options.validation_fraction
         if validation_fraction is None and warm_start is not None:

@@ -6,12 +6,12 @@ import logging
 import sys
 import time
 
-__all__ = ["Progress", "routes_text", "rounds_text"]
+__all__ = ["StageLines", "routes_text", "rounds_text"]
 
 _LOG = logging.getLogger("pneusim.fit")
 
 
-class Progress:
+class StageLines:
     """One line per fit stage, with the seconds since ``started``: to the ``pneusim.fit`` logger at INFO level,
     and to standard error unless ``quiet``."""
 
