@@ -6,7 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .data import IDData
+from .data import IDData, real_number
 from .errors import SysidError
 
 
@@ -30,6 +30,21 @@ def check_orders(orders, names: tuple[str, ...], minima: tuple[int, ...]) -> tup
     if len(seq) != len(names):
         raise SysidError(f"orders must be a list [{', '.join(names)}] of {len(names)} integers, got {orders!r}.")
     return tuple(check_order(v, n, m) for v, n, m in zip(seq, names, minima))
+
+
+def check_flag(value, name: str) -> bool:
+    """``True`` or ``False`` (Python or NumPy); a string such as ``"no"`` is refused rather than read as true."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise SysidError(f"{name} must be True or False, got {value!r}.")
+    return bool(value)
+
+
+def check_tolerance(value, name: str) -> float:
+    """A finite number >= 0."""
+    v = real_number(value, name, "a finite number >= 0")
+    if not (np.isfinite(v) and v >= 0):
+        raise SysidError(f"{name} must be a finite number >= 0, got {value!r}.")
+    return v
 
 
 def check_enough_data(n_samples: int, n_parameters: int, what: str) -> None:

@@ -126,23 +126,30 @@ def _n_params(model):
     return n
 
 
+def _log(V: float) -> float:
+    """``log V`` with ``log 0 = -inf`` (a model that reproduces the data exactly, as MATLAB)."""
+    return math.log(V) if V > 0 else -math.inf
+
+
 def fpe(model, data: IDData | None = None) -> float:
-    """Akaike's final prediction error ``V (1 + d/N)/(1 - d/N)``."""
+    """Akaike's final prediction error ``V (1 + d/N)/(1 - d/N)``; needs ``N > d``."""
     V, N = _loss_terms(model, data)
     d = _n_params(model)
+    if not N > d:
+        raise SysidError(f"model has {d} parameters for {N} samples: FPE needs more samples than parameters.")
     return V * (1 + d / N) / (1 - d / N)
 
 
 def aic(model, data: IDData | None = None) -> float:
     """Raw Akaike information criterion ``N log V + 2d + N(log 2pi + 1)`` (MATLAB ``aic``)."""
     V, N = _loss_terms(model, data)
-    return N * math.log(V) + 2 * _n_params(model) + N * (math.log(2 * math.pi) + 1)
+    return N * _log(V) + 2 * _n_params(model) + N * (math.log(2 * math.pi) + 1)
 
 
 def bic(model, data: IDData | None = None) -> float:
     """Bayesian information criterion ``N log V + d log N + N(log 2pi + 1)``."""
     V, N = _loss_terms(model, data)
-    return N * math.log(V) + _n_params(model) * math.log(N) + N * (math.log(2 * math.pi) + 1)
+    return N * _log(V) + _n_params(model) * math.log(N) + N * (math.log(2 * math.pi) + 1)
 
 
 def struc(na_range, nb_range, nk_range) -> np.ndarray:
@@ -192,7 +199,13 @@ def selstruc(table: np.ndarray, criterion: str = "val") -> list[int]:
         ``"val"``: smallest loss (use with separate validation data);
         ``"aic"``: ``V (1 + 2d/N)``; ``"mdl"``: ``V (1 + d log(N)/N)`` (MATLAB's forms).
     """
-    t = np.asarray(table, dtype=float)
+    try:
+        t = np.asarray(table, dtype=float)
+    except (TypeError, ValueError):
+        t = np.zeros(0)
+    if t.ndim != 2 or t.shape[0] == 0 or t.shape[1] != 5 or not np.all(np.isfinite(t)):
+        raise SysidError(f"table must be an arxstruc table: rows [V, na, nb, nk, N] of finite numbers, got "
+                         f"shape {np.shape(table)}.")
     V, d, N = t[:, 0], t[:, 1] + t[:, 2], t[:, 4]
     if criterion == "val":
         score = V

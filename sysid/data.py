@@ -182,7 +182,7 @@ def detrend(data: IDData, order: int = 0) -> IDData:
     IDData
         Detrended copy; the removed offsets are not stored.
     """
-    if order not in (0, 1):
+    if isinstance(order, (bool, np.bool_)) or order not in (0, 1):
         raise SysidError(f"order must be 0 (mean) or 1 (linear trend), got {order!r}.")
     from scipy.signal import detrend as _dt
     kind = "constant" if order == 0 else "linear"

@@ -26,7 +26,8 @@ import numpy as np
 from scipy.signal import lfilter
 
 from ._blas import one_blas_thread
-from ._checks import check_data, check_enough_data, check_order, check_orders, scaled, unscale_poly
+from ._checks import (check_data, check_enough_data, check_order, check_orders, check_tolerance, scaled,
+                      unscale_poly)
 from ._diagnose import finish
 from .arx import arx_regressors
 from .data import IDData
@@ -255,7 +256,8 @@ class PEM:
             m0 = IDPoly(m0.A, m0.B * (su / sy), m0.C, m0.D, m0.F, Ts=data.Ts, nk=nk, nb=nb)
         else:
             m0 = self._initial(data)
-        m, J, eps, info = _lm(m0, data.y, data.u, int(self.max_iter), float(self.tol))
+        m, J, eps, info = _lm(m0, data.y, data.u, check_order(self.max_iter, "max_iter"),
+                              check_tolerance(self.tol, "tol"))
         N = data.N
         V = info["cost"]
         lam = V / max(N - d, 1)

@@ -43,7 +43,7 @@ from collections import deque
 import numpy as np
 from scipy.linalg.blas import dger
 
-from ._checks import check_data, check_enough_data, check_orders
+from ._checks import check_data, check_enough_data, check_orders, check_tolerance
 from .data import IDData, check_sample_time, real_number
 from .errors import SysidError, SysidWarning
 from .polynomial import IDPoly, std_of
@@ -95,7 +95,7 @@ def check_rls_options(orders, forgetting=1.0, initial_covariance=1000.0, *, max_
     initial_covariance : float
         ``c`` in ``P(0) = c I``: finite and > 0.
     max_abs_y, max_abs_u : float, optional
-        Largest ``|y|`` and ``|u|`` the estimator will see (output and input units).  With
+        Largest ``|y|`` and ``|u|`` the estimator will see (output and input units, finite, >= 0).  With
         them ``c`` is also checked against the signals: ``c |psi|^2`` with ``|psi|^2`` up to
         ``(na + nc) max_abs_y^2 + nb max_abs_u^2`` must stay below ``lambda / eps``
         (:data:`RLS_DIGITS_LIMIT`), else the first update leaves no correct digit in ``P``.
@@ -121,17 +121,20 @@ def check_rls_options(orders, forgetting=1.0, initial_covariance=1000.0, *, max_
         raise SysidError(f"initial_covariance must be a positive finite number c (P0 = c I), got "
                          f"{initial_covariance!r}.")
     if max_abs_y is not None or max_abs_u is not None:
-        ymax = real_number(0.0 if max_abs_y is None else max_abs_y, "max_abs_y", "a number")
-        umax = real_number(0.0 if max_abs_u is None else max_abs_u, "max_abs_u", "a number")
-        with np.errstate(over="ignore"):
-            psi2 = (na + nc) * ymax ** 2 + nb * umax ** 2
-            if not c * psi2 < lam * RLS_DIGITS_LIMIT:
-                limit = lam * RLS_DIGITS_LIMIT / psi2
-                raise SysidError(
-                    f"initial_covariance c = {c:.4g} is too large for signals up to |y| = {ymax:.4g} and "
-                    f"|u| = {umax:.4g}: c |psi|^2 = {c * psi2:.3g} must stay below forgetting/eps = "
-                    f"{lam * RLS_DIGITS_LIMIT:.3g}, beyond which the first update leaves no correct digit in P "
-                    f"(expected c < {limit:.3g}).")
+        ymax = check_tolerance(0.0 if max_abs_y is None else max_abs_y, "max_abs_y")
+        umax = check_tolerance(0.0 if max_abs_u is None else max_abs_u, "max_abs_u")
+        psi2 = (na + nc) * ymax * ymax + nb * umax * umax      # Python floats: inf, not an error, when too large
+        if not math.isfinite(psi2):
+            raise SysidError(
+                f"signals up to |y| = {ymax:.4g} and |u| = {umax:.4g} are too large for recursive least squares "
+                f"in float64 (|psi|^2 up to {psi2:.3g}: no initial_covariance keeps c |psi|^2 below "
+                f"forgetting/eps); express y and u in units nearer 1.")
+        if not c * psi2 < lam * RLS_DIGITS_LIMIT:
+            raise SysidError(
+                f"initial_covariance c = {c:.4g} is too large for signals up to |y| = {ymax:.4g} and "
+                f"|u| = {umax:.4g}: c |psi|^2 = {c * psi2:.3g} must stay below forgetting/eps = "
+                f"{lam * RLS_DIGITS_LIMIT:.3g}, beyond which the first update leaves no correct digit in P "
+                f"(expected c < {lam * RLS_DIGITS_LIMIT / psi2:.3g}).")
     return (na, nb, nc, nk), lam, c
 
 

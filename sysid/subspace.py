@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._blas import one_blas_thread
-from ._checks import check_data, check_order, rms_scale
+from ._checks import check_data, check_flag, check_order, rms_scale
 from ._diagnose import finish, growth_over, problems
 from .data import IDData
 from .errors import SysidError
@@ -127,6 +127,7 @@ class N4SID:
         weighting = str(self.weighting).lower() if isinstance(self.weighting, str) else self.weighting
         if weighting not in ("auto", "moesp", "ssarx"):
             raise SysidError(f"weighting must be 'auto', 'moesp' or 'ssarx', got {self.weighting!r}.")
+        check_flag(self.feedthrough, "feedthrough")
         if self.enforce_stability is not None and not isinstance(self.enforce_stability, (bool, np.bool_)):
             raise SysidError(f"enforce_stability must be True, False or None, got {self.enforce_stability!r}.")
         # work on signals of unit size: the result does not depend on the units (1e-3 m or 1e200)

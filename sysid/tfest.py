@@ -109,7 +109,7 @@ class IDTF:
         """
         if Ts is None:
             return _discretise(self.num, self.den, self.Ts, self.delay_samples)
-        Ts = float(Ts)
+        Ts = check_sample_time(Ts)
         d = self.iodelay / Ts
         if abs(d - round(d)) > 1e-6 * max(1.0, d):
             raise SysidError(f"the model's input delay {self.iodelay:g} s is not a whole number of samples of "
@@ -295,6 +295,7 @@ class TFEst:
         if m >= n:
             raise SysidError(f"nz must be smaller than np = {n} (proper, strictly), got {m}.")
         dmax = check_order(self.max_delay_samples, "max_delay_samples")
+        check_order(self.srivc_iterations, "srivc_iterations")
         check_enough_data(data.N - dmax, n + m + 1, f"tfest with {n} poles and {m} zeros")
         original = data
         data, sy, su = scaled(data)
@@ -304,12 +305,12 @@ class TFEst:
             candidates = sorted({max(d0 - 1, 0), d0, d0 + 1})
         else:
             try:
-                ok = bool(np.isfinite(self.iodelay) and self.iodelay >= 0)
-            except TypeError:
-                ok = False
-            if not ok:
+                delay = real_number(self.iodelay, "iodelay", "a non-negative number of seconds or None")
+            except SysidError:
+                delay = float("nan")
+            if not (np.isfinite(delay) and delay >= 0):
                 raise SysidError(f"iodelay must be a non-negative number of seconds or None, got {self.iodelay!r}.")
-            candidates = [int(round(self.iodelay / Ts))]
+            candidates = [int(round(delay / Ts))]
         best = None
         for d in candidates:
             sol = self._fit_delay(data, d)

@@ -77,3 +77,10 @@ def test_delay_scan_and_order_grid_beyond_the_data_are_refused():
         sysid.arxstruc(d, d[:50], [[2, 2, 60]])
     with pytest.raises(sysid.SysidError, match="^nb must be an integer"):
         sysid.arxstruc(d, d, [[2, 2.5, 1]])
+
+
+def test_criteria_of_an_exact_model_are_minus_infinity():
+    """V = 0 (the model reproduces the data): log V = -inf, as MATLAB, not Python's 'math domain error'."""
+    d = simulate_poly([1, -0.5], [0, 1], N=200, sigma=0.0, seed=2)
+    m = sysid.idpoly([1, -0.5], [0, 1])
+    assert sysid.aic(m, d) == -math.inf and sysid.bic(m, d) == -math.inf and sysid.fpe(m, d) == 0.0

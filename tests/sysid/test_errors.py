@@ -115,6 +115,13 @@ def _bad_calls():
         "nk_max": lambda: sysid.delayest(d, nk_max=500),
         "yhat": lambda: sysid.fit_percent(d.y, d.y[1:]),
         "num": lambda: sysid.IDTF(np.ones(3), np.ones(2)),
+        "max_iter": lambda: sysid.ARMAX(1, 1, 1, max_iter="many").fit(d),
+        "tol": lambda: OE(1, 1, 1, tol=-1e-9).fit(d),
+        "feedthrough": lambda: sysid.n4sid(d, 1, feedthrough="no"),
+        "srivc_iterations": lambda: sysid.TFEst(1, 0, srivc_iterations="six").fit(d),
+        "table": lambda: sysid.selstruc(np.zeros((2, 3))),
+        "FPE": lambda: sysid.fpe(m, d[:2]),
+        "order": lambda: sysid.detrend(d, True),
     }
 
 

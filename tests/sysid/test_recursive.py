@@ -268,6 +268,9 @@ def test_recursive_sample_time_and_orders_are_checked():
         sysid.RecursiveARX([1, 1, 1], Ts=True)
     with pytest.raises(sysid.SysidError, match="initial_parameters must be 2 finite real numbers"):
         sysid.RecursiveARX([1, 1, 1], initial_parameters=[0.5, np.nan])
+    huge = sysid.iddata(1e160 * np.sin(np.arange(50.0)), np.ones(50), 1.0)
+    with pytest.raises(sysid.SysidError, match=r"^signals up to \|y\| = .* too large for recursive least squares"):
+        sysid.rls(huge, [1, 1, 1])
     short = sysid.iddata(np.arange(10.0), np.ones(10), 1.0)
     with pytest.raises(sysid.SysidError, match=r"orders are too high for the data: rls with orders \[5, 5, 1\]"):
         sysid.rls(short, [5, 5, 1])

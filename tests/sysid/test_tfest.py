@@ -82,3 +82,11 @@ def test_tfest_on_data_from_a_discrete_system():
     np.testing.assert_allclose(np.sort_complex(m1.poles()), true_poles, rtol=5e-3)
     assert sysid.compare(d, m1) > 98.0
     assert sysid.compare(d, sysid.tfest(d, 2, 0)) > 95.0  # no zero: still a good approximation
+
+
+def test_iodelay_true_is_not_one_second():
+    d = sysid.iddata(np.sin(0.3 * np.arange(200.0)), np.sign(np.sin(0.1 * np.arange(200.0))), 0.01)
+    with pytest.raises(sysid.SysidError, match="^iodelay must be a non-negative number of seconds or None"):
+        sysid.tfest(d, 1, 0, iodelay=True)
+    with pytest.raises(sysid.SysidError, match="^Ts must be a positive number of seconds"):
+        sysid.IDTF(np.array([1.0]), np.array([1.0, 1.0]), Ts=0.01).to_idpoly(Ts="0.01")
