@@ -7,11 +7,15 @@ import dataclasses
 import sys
 from pathlib import Path
 
+from ..outputs import file_digest, write_json_atomic
 from ..plausibility import check_plausible
 from ..recording import read_recording
 from ..rig import write_rig
-from .common import (add_rig_arguments, number_type, output_file, output_folder, parse_effects,
-                     rig_for_recording)
+from .common import (add_overwrite_argument, add_rig_arguments, number_type, output_file, parse_effects,
+                     refuse_inputs_as_outputs, results_folder, rig_for_recording)
+
+#: what ``--report DIR`` holds (pneusim.fit.report.write_fit_report)
+REPORT_FILES = ("index.html", "report.md", "fit.json", "fit.png")
 
 
 def register(sub) -> None:
@@ -31,13 +35,16 @@ def register(sub) -> None:
     p.add_argument("recording", metavar="RECORDING", help="pneusim-recording/1 file (.csv or .mat)")
     add_rig_arguments(p)
     p.add_argument("--free", action="append", metavar="NAME",
-                   help="a parameter to fit (repeatable; default: valve conductance and critical pressure ratio, "
-                        "friction, moving mass, plus the parameters of the effects switched on)")
+                   help="a parameter to fit (repeatable); the parameters given replace the default list (valve "
+                        "conductance and critical pressure ratio, friction, moving mass, plus the parameters of "
+                        "the effects switched on): list every parameter to fit")
     p.add_argument("--validation-fraction", type=number_type("a fraction in (0, 1)", 0.0, 1.0, low_included=False,
                                                              high_included=False), default=0.3, metavar="F",
                    help="final fraction of the recording kept for validation (default 0.3)")
     p.add_argument("--json", metavar="OUT.json", help="write the result as JSON")
-    p.add_argument("--report", metavar="DIR", help="write report.md, fit.json and fit.png into DIR")
+    p.add_argument("--report", metavar="DIR", help="write index.html (self-contained), report.md, fit.json and "
+                   "fit.png into DIR")
+    add_overwrite_argument(p, "fit report")
     p.add_argument("--quiet", action="store_true", help="print only the validation fit")
     p.add_argument("--rig-out", metavar="FITTED.toml", help="write the rig with the fitted values as a rig file "
                    "that --rig accepts")
@@ -55,13 +62,20 @@ def run(args, fit_recording=None) -> int:
     fit_recording = fit_recording or fit
     if args.json:
         output_file(args.json, "--json", (".json",))
-    if args.report:
-        output_folder(args.report, "--report")
     if args.rig_out:
         output_file(args.rig_out, "--rig-out", (".toml",))
     recording = read_recording(args.recording)
+    rig_file = args.rig if args.rig and args.rig.lower().endswith(".toml") else None
+    inputs = {"the recording": args.recording, "the rig file given with --rig": rig_file,
+              "the rig file the recording names (rig_file)": None if args.rig else recording.metadata.get("rig_file")}
+    refuse_inputs_as_outputs({"--json": args.json, "--rig-out": args.rig_out}, inputs)
     rig = rig_for_recording(recording, args.recording, args.rig, args.param)
     check_plausible(recording, rig)   # a 1e30 V command or pressures in bar are refused before any work
+    folder = None
+    if args.report:
+        identity = {"recording": file_digest(args.recording), "rig": rig.params, "rig_name": rig.name,
+                    "effects": list(args.effect or []), "free": args.free, "validation": args.validation_fraction}
+        folder = results_folder(args, args.report, "--report", identity, known=REPORT_FILES, inputs=inputs)
     mismatch = None
     if args.rig and recording.rig and recording.rig != rig.name:
         mismatch = (f"--rig {args.rig} ({rig.name}) differs from the rig the recording names ('rig: "
@@ -77,10 +91,11 @@ def run(args, fit_recording=None) -> int:
     else:
         print(result.summary())
     if args.json:
-        result.write_json(args.json)
+        write_json_atomic(args.json, result.to_dict(), indent=1)
         print(f"wrote {args.json}")
     if args.report:
         print(f"wrote {write_fit_report(result, args.report)}")
+        folder.finish()
     if args.rig_out:
         fitted = dataclasses.replace(result.rig_, name=Path(args.rig_out).stem,
                                      description=f"{rig.name} fitted to {args.recording} (pneusim fit)")

@@ -15,17 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..plotting import COLOURS, colour_for, ms, new_figure, padded_range, robust_range, save_figure
+
 __all__ = ["write_report"]
-
-
-def _plt():
-    """``matplotlib.pyplot`` on the Agg backend, imported on first use (about a second; only the report draws)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def _ms(x) -> str:
@@ -53,90 +45,97 @@ def write_report(run, comp, spec) -> Path:
 
 def _response_figure(out: Path, t, y, res, comp, s) -> tuple[str, str]:
     """Measured position (and reference) and the valve command over time."""
-    plt = _plt()
-    fig, ax = plt.subplots(2, 1, sharex=True, figsize=(9, 5))
-    ax[0].plot(t, y, lw=0.8, label="measured")
+    fig, ax = new_figure(2, 1, title=f"{s['name']}: {s['plant']} plant, {s['mode']}: the position "
+                                     f"{'follows the reference' if comp.controller is not None else 'under the command'}"
+                                     " and the valve command that drives it", size=(9, 5), sharex=True)
+    ax[0].plot(t, y, lw=0.9, color=COLOURS["measured"], label="measured")
     if comp.controller is not None:
-        ax[0].plot(t, comp.to_output(res.reference), lw=0.8, ls="--", label="reference")
+        ax[0].plot(t, comp.to_output(res.reference), lw=0.9, ls="--", color=COLOURS["reference"], label="reference")
+        ax[0].legend(fontsize=8)
     ax[0].set_ylabel(f"position ({comp.output_unit})")
-    ax[0].legend(loc="upper right", fontsize=8)
-    ax[1].plot(t, res.valve_cmd_V, lw=0.8, color="C2")
+    ax[1].plot(t, res.valve_cmd_V, lw=0.8, color=COLOURS["command"])
     ax[1].set_ylabel("valve command (V)")
     ax[1].set_xlabel("time (s)")
-    fig.suptitle(f"{s['name']}: {s['plant']} plant, {s['mode']}")
-    fig.tight_layout()
-    fig.savefig(out / "response.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, out / "response.png")
     return ("Response", "response.png")
 
 
 def _predictions_figure(out: Path, t, y, res, comp) -> tuple[str, str]:
-    """Per estimator: the actual output and its h-step predictions."""
-    plt = _plt()
+    """Per estimator: the actual output and its h-step predictions (top), the prediction errors (below)."""
     names = list(comp.estimators)
-    fig, axes = plt.subplots(len(names), 1, sharex=True, figsize=(9, 2.3 * len(names)), squeeze=False)
-    for ax, name in zip(axes[:, 0], names):
-        ax.plot(t, y, lw=1.0, color="k", label="actual")
-        for h in comp.estimators[name].horizons:
-            ax.plot(t, res.predictions[(name, h)], lw=0.7, label=f"{h}-step")
-        ok = np.isfinite(y)
-        if ok.any():
-            lo, hi = np.nanmin(y), np.nanmax(y)
-            pad = 0.3 * (hi - lo + 1e-12)
-            ax.set_ylim(lo - pad, hi + pad)
-        ax.set_ylabel(comp.output_unit)
+    fig, axes = new_figure(2 * len(names), 1, size=(9, 3.6 * len(names) + 0.8), squeeze=False, sharex=True,
+                           gridspec_kw={"height_ratios": [2, 1] * len(names)},
+                           title="Online h-step predictions of each estimator against the actual output; the error "
+                                 "panels show what predicting further ahead costs")
+    for k, name in enumerate(names):
+        ax, ax_e = axes[2 * k, 0], axes[2 * k + 1, 0]
+        colour = colour_for(name, "rls", getattr(comp.estimators[name], "order", None))
+        ax.plot(t, y, lw=1.1, color=COLOURS["measured"], label="actual")
+        ax_e.axhline(0.0, color=COLOURS["reference"], lw=0.6)
+        errors = []
+        for i, h in enumerate(comp.estimators[name].horizons):
+            yhat = res.predictions[(name, h)]
+            ls = ("-", "--", "-.", ":")[i % 4]
+            ax.plot(t, yhat, lw=0.8, ls=ls, color=colour, label=f"{h}-step")
+            ax_e.plot(t, y - yhat, lw=0.6, ls=ls, color=colour, label=f"{h}-step")
+            errors.append(y - yhat)
+        if np.isfinite(y).any():
+            ax.set_ylim(*padded_range(y, 0.3))
+        ax_e.set_ylim(*robust_range(errors))
+        ax.set_ylabel(f"output ({comp.output_unit})")
+        ax_e.set_ylabel(f"error ({comp.output_unit})")
         ax.set_title(name, fontsize=9)
-        ax.legend(loc="upper right", fontsize=7, ncol=4)
+        ax.legend(fontsize=7)
     axes[-1, 0].set_xlabel("time (s)")
-    fig.tight_layout()
-    fig.savefig(out / "predictions.png", dpi=110)
-    plt.close(fig)
-    return ("Online predictions (actual and h-step predicted output)", "predictions.png")
+    save_figure(fig, out / "predictions.png")
+    return ("Online predictions (actual and h-step predicted output, and the prediction errors)", "predictions.png")
 
 
 def _coefficients_figure(out: Path, t, res, comp) -> tuple[str, str]:
-    """Per estimator: ``a1..an`` and ``b1..bn`` over time."""
-    plt = _plt()
+    """Per estimator: ``a1..an`` (solid) and ``b1..bn`` (dashed) over time."""
     names = list(comp.estimators)
-    fig, axes = plt.subplots(len(names), 1, sharex=True, figsize=(9, 2.3 * len(names)), squeeze=False)
+    fig, axes = new_figure(len(names), 1, size=(9, 2.6 * len(names) + 0.8), squeeze=False, sharex=True,
+                           title="Coefficients theta(t) of each online estimator over the run: where they settle "
+                                 "and where they move")
     for ax, name in zip(axes[:, 0], names):
         th = res.thetas[name]
         n = th.shape[1] // 2
         for i in range(n):
-            ax.plot(t, th[:, i], lw=0.8, label=f"a{i + 1}")
+            ax.plot(t, th[:, i], lw=0.8, color=f"C{i}", label=f"a{i + 1}")
         for i in range(n):
-            ax.plot(t, th[:, n + i], lw=0.8, ls="--", label=f"b{i + 1}")
-        ax.set_title(name, fontsize=9)
-        ax.legend(loc="upper right", fontsize=6, ncol=2 * n)
+            ax.plot(t, th[:, n + i], lw=0.8, ls="--", color=f"C{i}", label=f"b{i + 1}")
+        ax.set_ylabel("coefficient (-)")
+        ax.set_title(f"{name}: a (solid) and b (dashed) of eq. 6", fontsize=9)
+        ax.legend(fontsize=6, ncol=2)
     axes[-1, 0].set_xlabel("time (s)")
-    fig.tight_layout()
-    fig.savefig(out / "coefficients.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, out / "coefficients.png")
     return ("Coefficient traces theta(t)", "coefficients.png")
 
 
 def _timing_figure(out: Path, t, res) -> tuple[str, str]:
     """Lateness over time and its histogram (paced runs), computation per sample."""
-    plt = _plt()
-    fig, ax = plt.subplots(1, 3, figsize=(12, 3.2))
     late = res.lateness_s
-    if np.isfinite(late).any():
-        ax[0].plot(t, late * 1e3, lw=0.5)
-        ax[0].axhline(0.5 * res.sample_time_s * 1e3, color="r", lw=0.8, ls="--", label="half a sample")
+    paced = np.isfinite(late).any()
+    fig, ax = new_figure(1, 3, size=(12, 3.6), title="Loop timing: how late each sample starts against its deadline, "
+                                                      "and the computation it needs" if paced else
+                         "Loop timing: the computation each sample needs (fast mode: no deadlines)")
+    if paced:
+        ax[0].plot(t, ms(late), lw=0.5, color=COLOURS["measured"])
+        ax[0].axhline(0.5 * res.sample_time_s * 1e3, color=COLOURS["arx"], lw=0.8, ls="--", label="half a sample")
         ax[0].set_ylabel("lateness (ms)")
         ax[0].set_xlabel("time (s)")
         ax[0].legend(fontsize=7)
-        ax[1].hist(late[np.isfinite(late)] * 1e3, bins=100, log=True)
+        ax[1].hist(ms(late[np.isfinite(late)]), bins=100, log=True, color=COLOURS["measured"])
         ax[1].set_xlabel("lateness (ms)")
-        ax[1].set_ylabel("samples")
+        ax[1].set_ylabel("samples (count)")
     else:
         for a in ax[:2]:
             a.text(0.5, 0.5, "fast mode: no deadlines", ha="center", va="center", transform=a.transAxes)
-    ax[2].hist(res.compute_s[np.isfinite(res.compute_s)] * 1e3, bins=100, log=True, color="C1")
+            a.axis("off")
+    ax[2].hist(ms(res.compute_s[np.isfinite(res.compute_s)]), bins=100, log=True, color=COLOURS["command"])
     ax[2].set_xlabel("computation per sample (ms)")
-    fig.tight_layout()
-    fig.savefig(out / "timing.png", dpi=110)
-    plt.close(fig)
+    ax[2].set_ylabel("samples (count)")
+    save_figure(fig, out / "timing.png")
     return ("Timing: lateness against the deadline, its histogram, and computation per sample", "timing.png")
 
 

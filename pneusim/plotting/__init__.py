@@ -18,12 +18,12 @@ from .check import figure_problems
 from .figure import DPI, figure_hook, finish_figure, new_figure, pyplot, save_figure, show_figure
 from .legend import LEGEND_MAX_SHARE, keep_in_place
 from .page import render_html, render_markdown, write_page
-from .panels import Curve, compare_figure, mark_clipped, padded_range, robust_range, zoom_window
+from .panels import Curve, Signal, compare_figure, fit_range, mark_clipped, padded_range, robust_range, zoom_window
 from .style import (COLOURS, STANDARD_ATMOSPHERE_PA, bar_abs, bar_gauge, colour_for, family_of, fit_label, mm,
                     mm_per_s, model_styles, ms, parameter_axis)
 
 __all__ = ["COLOURS", "STANDARD_ATMOSPHERE_PA", "bar_abs", "bar_gauge", "colour_for", "family_of", "fit_label", "mm",
            "mm_per_s", "model_styles", "ms", "parameter_axis", "DPI", "figure_hook", "finish_figure", "new_figure",
            "pyplot", "save_figure", "show_figure", "LEGEND_MAX_SHARE", "keep_in_place", "figure_problems",
-           "Curve", "compare_figure", "mark_clipped", "padded_range", "robust_range", "zoom_window",
+           "Curve", "Signal", "compare_figure", "fit_range", "mark_clipped", "padded_range", "robust_range", "zoom_window",
            "render_html", "render_markdown", "write_page"]

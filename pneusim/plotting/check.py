@@ -7,7 +7,8 @@
   (``"position (mm)"``, ``"fit (%)"``, ``"noise scale (-)"`` for a pure number) -- an axis of categories
   (tick labels that are not numbers) needs a label but no unit;
 * legends that leave the data visible: no legend over more than :data:`.legend.LEGEND_MAX_SHARE` of any one
-  series' points (measured on the drawn figure).
+  series' points (measured on the drawn figure);
+* nothing cut at the figure's edges: the title, panel titles, axis labels and legends inside the figure.
 
 Test code gives every figure of a report to it through :func:`.figure.figure_hook`::
 
@@ -63,6 +64,27 @@ def _title(fig) -> str:
     return ""
 
 
+def _cut_at_edges(fig, renderer, head: str) -> list[str]:
+    """Texts and legends that reach beyond the figure's edges (by more than a pixel)."""
+    box = fig.bbox
+    items = [("the title", fig._suptitle)] if fig.get_suptitle() else []
+    for ax in fig.axes:
+        if ax.get_visible():
+            items += [(f"the title {ax.get_title()!r}", ax.title), (f"the x label {ax.get_xlabel()!r}", ax.xaxis.label),
+                      (f"the y label {ax.get_ylabel()!r}", ax.yaxis.label)]
+            if ax.get_legend() is not None:
+                items.append(("a legend", ax.get_legend()))
+    items += [("a figure legend", leg) for leg in fig.legends]
+    out = []
+    for what, artist in items:
+        if not artist.get_visible() or (hasattr(artist, "get_text") and not artist.get_text()):
+            continue
+        e = artist.get_window_extent(renderer)
+        if e.x0 < box.x0 - 1 or e.x1 > box.x1 + 1 or e.y0 < box.y0 - 1 or e.y1 > box.y1 + 1:
+            out.append(f"{head}: {what} reaches beyond the figure's edge")
+    return out
+
+
 def figure_problems(fig, name=None, max_legend_share: float = LEGEND_MAX_SHARE) -> list[str]:
     """What ``fig`` lacks of the standard, one sentence each (empty: it passes).  ``name`` (a file name or
     a caption) starts every sentence.  Draws the figure (without rendering) to measure the legends."""
@@ -70,6 +92,7 @@ def figure_problems(fig, name=None, max_legend_share: float = LEGEND_MAX_SHARE) 
     renderer = fig.canvas.get_renderer()
     head = str(name) if name is not None else (fig.get_suptitle() or "figure")
     problems = [] if _title(fig) else [f"{head}: no title (suptitle, or the title of its one panel)"]
+    problems += _cut_at_edges(fig, renderer, head)
     for i, ax in enumerate(fig.axes):
         if not ax.get_visible() or not ax.axison:
             continue

@@ -58,13 +58,30 @@ def figure_hook(hook):
         _HOOKS.remove(hook)
 
 
+def _wrap_title(fig) -> None:
+    """Break the figure's title into lines that fit its width (a long title would be cut at the edges)."""
+    import textwrap
+
+    title = fig.get_suptitle()
+    if not title:
+        return
+    fig.draw_without_rendering()
+    text = fig._suptitle
+    width = text.get_window_extent(fig.canvas.get_renderer()).width
+    room = 0.97 * fig.bbox.width
+    if width > room:
+        chars = max(20, int(len(title.replace("\n", " ")) * room / width))
+        text.set_text(textwrap.fill(title.replace("\n", " "), chars))
+
+
 def finish_figure(fig):
-    """Apply the standard's last step to ``fig`` (legends placed where they cover no data; constrained
-    layout for a figure made without a layout) and let the hooks see it; returns ``fig``."""
+    """Apply the standard's last step to ``fig`` (a title broken into lines that fit, legends placed where they
+    cover no data; constrained layout for a figure made without a layout); returns ``fig``."""
     from .legend import place_legends
 
     if fig.get_layout_engine() is None:
         fig.set_layout_engine("constrained")
+    _wrap_title(fig)
     place_legends(fig)
     return fig
 

@@ -18,13 +18,19 @@ from .figure import LEGEND_SIZE, PANEL_TITLE_SIZE, new_figure
 from .legend import keep_in_place
 from .style import COLOURS, fit_label, model_styles
 
-__all__ = ["Curve", "compare_figure", "zoom_window", "robust_range", "mark_clipped", "padded_range"]
+__all__ = ["Curve", "Signal", "compare_figure", "zoom_window", "robust_range", "mark_clipped", "padded_range", "fit_range"]
 
 #: the zoom window's length as a share of the record
 ZOOM_SHARE = 0.08
 #: a model whose error's 99th percentile is this many times the median model's leaves the error panel's range
 #: (marked) instead of squashing every other model's error to a line
 ERROR_OUTLIER_RATIO = 4.0
+
+
+#: on a fit % axis, the share of values (lowest first) that may fall below the range: the worst outliers
+OUTLIER_SHARE = 0.1
+#: ... and how far below the rest the range reaches, in spans of the rest
+CLIP_SPANS = 1.0
 
 
 @dataclass
@@ -48,6 +54,20 @@ def padded_range(values, pad: float = 0.08):
     lo, hi = float(v.min()), float(v.max())
     span = hi - lo or max(abs(hi), 1.0) * 0.1
     return lo - pad * span, hi + pad * span
+
+
+def fit_range(values, top: float = 100.0):
+    """``(low, high)`` of a fit % axis that shows the differences between the models that fit: the bulk of the
+    values (all but the lowest :data:`OUTLIER_SHARE`) and :data:`CLIP_SPANS` times its span below it; lower
+    values are clipped (mark them with :func:`mark_clipped`)."""
+    v = np.sort(np.asarray([x for x in values if x is not None and np.isfinite(x)], dtype=float))
+    if not v.size:
+        return 0.0, top
+    bulk_low = v[min(int(OUTLIER_SHARE * v.size), v.size - 1)]
+    span = max(v[-1] - bulk_low, 1.0)
+    low = max(v[0], bulk_low - CLIP_SPANS * span) - 0.1 * span
+    high = min(v[-1] + 0.25 * span, top + 0.02 * span)
+    return float(low), float(max(high, low + 1.0))
 
 
 def robust_range(groups, ratio: float = ERROR_OUTLIER_RATIO, pad: float = 0.1):
@@ -91,87 +111,129 @@ def zoom_window(t, errors, share: float = ZOOM_SHARE):
     return float(t[start]), float(t[start + width - 1])
 
 
-def compare_figure(t, measured, curves: list[Curve], *, title: str, ylabel: str, unit: str,
-                   measured_label: str = "measured", zoom: bool = True, split_s: float | None = None,
-                   size=(11.0, 5.6), error_panel: bool = True):
-    """Measured signal and model curves (top), their errors (bottom), the same zoomed on the window where
-    the models miss most (right); the legend under the panels.  Returns ``(figure, axes)`` with ``axes``
-    a dict ``"signal", "error"`` and, zoomed, ``"zoom_signal", "zoom_error"``.
+@dataclass
+class Signal:
+    """One measured signal of a comparison and the models' outputs for it: a row pair of
+    :func:`compare_figure` (the signal, then its errors).  ``ylabel`` is the quantity with its unit
+    (``"position (mm)"``), ``unit`` the unit alone (for the error axis), ``title`` an optional title of the
+    signal's panel."""
+    measured: np.ndarray
+    curves: list
+    ylabel: str
+    unit: str
+    measured_label: str = "measured"
+    title: str | None = None
+
+
+def _draw_signal(ax: dict, t, sig: Signal, window, zoom: bool, error_panel: bool, legend: bool) -> None:
+    """One signal's panels: measured and models (full and zoomed), their errors."""
+    y = np.asarray(sig.measured, dtype=float)
+    styles = model_styles([c.name for c in sig.curves], [c.kind for c in sig.curves])
+    errors = [y - np.asarray(c.values, dtype=float) for c in sig.curves]
+    for key in ("signal", "zoom_signal"):
+        if key not in ax:
+            continue
+        a = ax[key]
+        a.plot(t, y, color=COLOURS["measured"], lw=1.3, label=sig.measured_label if legend else "_", zorder=3)
+        for c in sig.curves:
+            st = styles[c.name]
+            a.plot(t, c.values, color=c.color or st["color"], ls=c.ls or st["ls"], lw=0.9,
+                   label=fit_label(c.name, c.fit_percent) if legend else "_", zorder=4)
+        a.set_ylabel(sig.ylabel)
+    if sig.title:
+        ax["signal"].set_title(sig.title, fontsize=PANEL_TITLE_SIZE)
+    values = [y] + [np.asarray(c.values, dtype=float) for c in sig.curves]
+    ax["signal"].set_ylim(*(padded_range(np.concatenate(values), 0.05) if len(sig.curves) <= 1
+                            else padded_range(y, 0.15)))
+    for key in ("error", "zoom_error"):
+        if key not in ax:
+            continue
+        a = ax[key]
+        a.axhline(0.0, color=COLOURS["reference"], lw=0.6)
+        for c, e in zip(sig.curves, errors):
+            st = styles[c.name]
+            a.plot(t, e, color=c.color or st["color"], ls=c.ls or st["ls"], lw=0.7, label="_")
+        a.set_ylabel(f"error ({sig.unit})")
+    if error_panel:
+        ax["error"].set_ylim(*robust_range(errors))
+    if zoom:
+        mask = (t >= window[0]) & (t <= window[1])
+        ax["zoom_signal"].set_xlim(*window)
+        ax["zoom_signal"].set_ylim(*padded_range(np.concatenate([v[mask] for v in values]), 0.1))
+        if error_panel:
+            ax["zoom_error"].set_ylim(*robust_range([e[mask] for e in errors]))
+        for key in ("signal", "error"):
+            if key in ax:
+                ax[key].axvspan(*window, color=COLOURS["window"], alpha=0.5, lw=0, zorder=0)
+
+
+def compare_figure(t, measured=None, curves: list[Curve] | None = None, *, title: str, ylabel: str | None = None,
+                   unit: str | None = None, measured_label: str = "measured", zoom: bool = True,
+                   split_s: float | None = None, size=None, error_panel: bool = True, signals: list | None = None,
+                   window=None):
+    """Measured signal and model curves (top), their errors (below), the same zoomed on the window where
+    the models miss most (right); the legend under the panels.  Returns ``(figure, axes)``: ``axes`` a
+    dict ``"signal", "error"`` (and, zoomed, ``"zoom_signal", "zoom_error"``) -- or, for several
+    ``signals``, a list of such dicts, one per signal.
 
     Parameters
     ----------
     t : array, shape (n,)
         Time, s.
     measured : array, shape (n,)
-        The measured signal, in ``unit``.
+        The measured signal, in ``unit`` (or give ``signals``).
     curves : list of Curve
         The models' outputs, same length and unit.
     ylabel : str
         The quantity with its unit, e.g. ``"position (mm)"``.
+    signals : list of Signal, optional
+        Several signals (e.g. position and both chamber pressures), one row pair each, instead of
+        ``measured``, ``curves``, ``ylabel`` and ``unit``.
     split_s : float, optional
         Where validation starts (a dotted line).
+    window : (float, float), optional
+        The zoom window, s (default: where the first signal's models miss most, :func:`zoom_window`).
     """
     t = np.asarray(t, dtype=float)
-    y = np.asarray(measured, dtype=float)
-    styles = model_styles([c.name for c in curves], [c.kind for c in curves])
-    rows = 2 if error_panel else 1
+    one = signals is None
+    if one:
+        signals = [Signal(measured, list(curves), ylabel, unit, measured_label)]
+    rows_each = 2 if error_panel else 1
     cols = 2 if zoom else 1
-    fig, axs = new_figure(rows, cols, title=title, size=size, squeeze=False, sharex="col",
+    size = size or (11.0, 5.6 if one else 2.6 * rows_each * len(signals) + 0.8)
+    fig, axs = new_figure(rows_each * len(signals), cols, title=title, size=size, squeeze=False, sharex="col",
                           gridspec_kw={"width_ratios": [3, 1] if zoom else [1],
-                                       "height_ratios": [3, 2] if error_panel else [1]})
-    ax = {"signal": axs[0, 0]}
-    if error_panel:
-        ax["error"] = axs[1, 0]
-    if zoom:
-        ax["zoom_signal"] = axs[0, 1]
+                                       "height_ratios": ([3, 2] if error_panel else [1]) * len(signals)})
+    first = signals[0]
+    if window is None:
+        window = zoom_window(t, [np.asarray(first.measured, dtype=float) - np.asarray(c.values, dtype=float)
+                                 for c in first.curves])
+    panels = []
+    for k, sig in enumerate(signals):
+        r = rows_each * k
+        ax = {"signal": axs[r, 0]}
         if error_panel:
-            ax["zoom_error"] = axs[1, 1]
-    errors = [y - np.asarray(c.values, dtype=float) for c in curves]
-    window = zoom_window(t, errors)
-    for key in ("signal", "zoom_signal"):
-        if key not in ax:
-            continue
-        a = ax[key]
-        a.plot(t, y, color=COLOURS["measured"], lw=1.3, label=measured_label, zorder=3)
-        for c in curves:
-            st = styles[c.name]
-            a.plot(t, c.values, color=c.color or st["color"], ls=c.ls or st["ls"], lw=0.9,
-                   label=fit_label(c.name, c.fit_percent), zorder=4)
-        a.set_ylabel(ylabel)
-    ax["signal"].set_ylim(*padded_range(np.concatenate([y] + [np.asarray(c.values) for c in curves]), 0.05)
-                          if len(curves) <= 1 else padded_range(y, 0.15))
-    if error_panel:
-        for key in ("error", "zoom_error"):
-            if key not in ax:
-                continue
-            a = ax[key]
-            a.axhline(0.0, color=COLOURS["reference"], lw=0.6)
-            for c, e in zip(curves, errors):
-                st = styles[c.name]
-                a.plot(t, e, color=c.color or st["color"], ls=c.ls or st["ls"], lw=0.7, label=c.name)
-            a.set_ylabel(f"error ({unit})")
-            a.set_xlabel("time (s)")
-        ax["error"].set_ylim(*robust_range(errors))
-    else:
-        ax["signal"].set_xlabel("time (s)")
+            ax["error"] = axs[r + 1, 0]
+        if zoom:
+            ax["zoom_signal"] = axs[r, 1]
+            if error_panel:
+                ax["zoom_error"] = axs[r + 1, 1]
+        _draw_signal(ax, t, sig, window, zoom, error_panel, legend=k == 0)
+        if split_s is not None:
+            for key in ("signal", "error"):
+                if key in ax:
+                    ax[key].axvline(split_s, color=COLOURS["reference"], ls=":", lw=1.0)
+        panels.append(ax)
+    for a in axs[-1, :]:
+        a.set_xlabel("time (s)")
     if zoom:
-        mask = (t >= window[0]) & (t <= window[1])
-        ax["zoom_signal"].set_xlim(*window)
-        ax["zoom_signal"].set_ylim(*padded_range(np.concatenate([y[mask]] + [np.asarray(c.values)[mask]
-                                                                              for c in curves]), 0.1))
-        ax["zoom_signal"].set_title(f"zoom: {window[0]:.2f}-{window[1]:.2f} s", fontsize=PANEL_TITLE_SIZE)
-        if error_panel:
-            ax["zoom_error"].set_ylim(*robust_range([e[mask] for e in errors]))
-        else:
-            ax["zoom_signal"].set_xlabel("time (s)")
-        for key in ("signal", "error"):
-            if key in ax:
-                ax[key].axvspan(*window, color=COLOURS["window"], alpha=0.5, lw=0, zorder=0)
+        panels[0]["zoom_signal"].set_title(f"zoom: {window[0]:.2f}-{window[1]:.2f} s", fontsize=PANEL_TITLE_SIZE)
+    handles, labels = panels[0]["signal"].get_legend_handles_labels()
     if split_s is not None:
-        for key in ("signal", "error"):
-            if key in ax:
-                ax[key].axvline(split_s, color=COLOURS["reference"], ls=":", lw=1.0)
-    handles, labels = ax["signal"].get_legend_handles_labels()
+        from matplotlib.lines import Line2D
+
+        handles.append(Line2D([], [], color=COLOURS["reference"], ls=":", lw=1.0))
+        labels.append(f"validation from {split_s:.1f} s")
     keep_in_place(fig.legend(handles, labels, loc="outside lower center", ncol=min(len(labels), 4),
                              fontsize=LEGEND_SIZE, frameon=False))
-    return fig, ax
+    return fig, (panels[0] if one else panels)

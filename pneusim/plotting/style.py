@@ -83,20 +83,38 @@ def colour_for(name: str, kind: str | None = None, order: int | None = None) -> 
 
 
 _DASHES = ("-", "--", "-.", ":")
+_MARKERS = ("o", "s", "^", "D")
 _SPARE = ("#E377C2", "#BCBD22", "#1F77B4", "#FF7F0E", "#7F7F7F", "#AEC7E8")
 
 
 def model_styles(names, kinds=None) -> dict[str, dict]:
-    """``{name: {"color", "ls"}}`` for several models in one figure: each its family's colour, a second model
-    of the same family dashed, a third dash-dotted; a name of no known family a spare colour."""
-    kinds = list(kinds) if kinds is not None else [None] * len(list(names))
+    """``{name: {"color", "ls", "marker"}}`` for several models in one figure: each its family's colour; a
+    second model of the same family a darker shade, dashed, with square markers, a third a lighter shade,
+    dash-dotted, with triangles; a name of no known family a spare colour."""
+    names = list(names)
+    kinds = list(kinds) if kinds is not None else [None] * len(names)
     styles, used, spare = {}, {}, iter(_SPARE * 4)
     for name, kind in zip(names, kinds):
         colour = colour_for(name, kind) or next(spare)
         n = used.get(colour, 0)
         used[colour] = n + 1
-        styles[name] = {"color": colour, "ls": _DASHES[n % len(_DASHES)]}
+        styles[name] = {"color": _shade(colour, _SHADES[n % len(_SHADES)]), "ls": _DASHES[n % len(_DASHES)],
+                        "marker": _MARKERS[n % len(_MARKERS)]}
     return styles
+
+
+# the n-th model of one family: its colour mixed with black (negative) or white (positive) by this share
+_SHADES = (0.0, -0.4, 0.45, -0.65)
+
+
+def _shade(colour: str, share: float) -> str:
+    """``colour`` (``#RRGGBB``) mixed with black (``share`` < 0) or white (``share`` > 0)."""
+    if share == 0.0 or not colour.startswith("#"):
+        return colour
+    rgb = np.array([int(colour[i:i + 2], 16) for i in (1, 3, 5)], dtype=float)
+    target = 255.0 if share > 0 else 0.0
+    mixed = rgb + abs(share) * (target - rgb)
+    return "#" + "".join(f"{int(round(v)):02X}" for v in mixed)
 
 
 def fit_label(name: str, fit_percent, digits: int = 1) -> str:

@@ -26,7 +26,8 @@ import sysid
 from ..metrics import error_stats
 from ..signals import build_experiment, input_signal, output_signal
 from ..simulate import simulate
-from .figures import pyplot, slug
+from ..plotting import Curve, compare_figure, fit_range, mark_clipped, model_styles, new_figure, save_figure
+from .figures import output_label, slug
 from .identify import clean_row
 
 __all__ = ["evaluate_conditions", "told_rig", "generalisation_blocks"]
@@ -159,14 +160,17 @@ def generalisation_blocks(result, out) -> list:
     if sentences:
         blocks.append(("ul", sentences))
     unit = {"sensor_V": "V"}.get(result.spec["data"]["output_unit"], result.spec["data"]["output_unit"])
+    ylabel = output_label(result.spec["data"]["output_unit"])
+    kinds = {r["identifier"]: r.get("kind") for r in result.rows}
     for c in conds:
         name = f"generalisation-{slug(c['name'])}.png"
-        _condition_figure(out / name, c, fits[c["name"]], unit)
+        _condition_figure(out / name, c, fits[c["name"]], unit, ylabel, kinds)
         blocks.append(("fig", (name, f"Condition '{c['name']}': measured output, each trained model's output "
-                                     "(top) and its error (bottom).")))
-    _summary_figure(out / "generalisation.png", names, conds, fits, gen)
+                                     "(top, fit % in the legend), its error (bottom), both zoomed where the models "
+                                     "miss most (right).")))
+    _summary_figure(out / "generalisation.png", names, conds, fits, gen, kinds)
     blocks.append(("fig", ("generalisation.png", "Fit % of every model on the training condition and on each "
-                                                 "unseen condition.")))
+                                                 "unseen condition: the generalisation gap, one line per model.")))
     return blocks
 
 
@@ -194,43 +198,41 @@ def _condition_sentence(name: str, f: dict, gen: dict, phys: list) -> str:
     return text + "."
 
 
-def _condition_figure(path, c: dict, fits: dict, unit: str) -> None:
-    """A condition's measured output and each trained model's output (top), their errors (bottom)."""
-    plt = pyplot()
-    fig, ax = plt.subplots(2, 1, sharex=True, figsize=(9, 5.2), gridspec_kw={"height_ratios": [3, 2]})
-    t, y = c["_t"], c["_y"]
-    ax[0].plot(t, y, color="k", lw=1.3, label="measured (simulated rig)")
-    for i, (n, yhat) in enumerate(c["_yhat"].items()):
-        ax[0].plot(t, yhat, lw=0.8, color=f"C{i}", label=f"{n}: {_fmt(fits.get(n))} %")
-        ax[1].plot(t, y - yhat, lw=0.6, color=f"C{i}")
-    span = float(np.ptp(y)) or 1.0
-    ax[0].set_ylim(float(np.min(y)) - 0.4 * span, float(np.max(y)) + 0.4 * span)
-    ax[0].legend(fontsize=7, ncol=3, loc="upper left")
-    ax[0].set_ylabel(f"y ({unit})")
-    ax[1].set_ylabel(f"error ({unit})")
-    ax[1].set_xlabel("time (s)")
-    fig.suptitle(f"Condition '{c['name']}': models trained on the main run (fit %)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+def _condition_figure(path, c: dict, fits: dict, unit: str, ylabel: str, kinds: dict) -> None:
+    """A condition's measured output and each trained model's output (top), their errors (bottom), both zoomed
+    where the models miss most (right)."""
+    curves = [Curve(n, yhat, fits.get(n), kinds.get(n)) for n, yhat in c["_yhat"].items()]
+    fig, _ = compare_figure(c["_t"], c["_y"], curves, measured_label="measured (simulated rig)", ylabel=ylabel,
+                            unit=unit, title=f"Condition '{c['name']}', never seen in training: each model trained on "
+                                             "the main run, as it is (black box) or told the change (physical)")
+    save_figure(fig, path)
 
 
-def _summary_figure(path, names: list, conds: list, fits: dict, gen: dict) -> None:
-    """Fit % of every model on the training condition and on each condition, as bars."""
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(9, 4))
+def _summary_figure(path, names: list, conds: list, fits: dict, gen: dict, kinds: dict) -> None:
+    """Fit % of every model on the training condition and on each condition, one line per model."""
     labels = ["training"] + [c["name"] for c in conds]
-    width = 0.8 / max(len(names), 1)
-    for i, n in enumerate(names):
-        vals = [gen["training"].get(n)] + [fits[c["name"]].get(n) for c in conds]
-        vals = [np.nan if v is None else max(v, -50.0) for v in vals]
-        ax.bar(np.arange(len(labels)) + i * width - 0.4 + width / 2, vals, width, label=n)
-    ax.set_xticks(np.arange(len(labels)), labels, fontsize=8)
-    ax.set_ylabel("fit % (clipped at -50)")
-    ax.set_ylim(-50, 105)
-    ax.axhline(0, color="k", lw=0.5)
-    ax.legend(fontsize=7, ncol=3)
-    ax.set_title("Fit per operating condition: trained once, never re-identified", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    values = {n: np.array([np.nan if v is None else v for v in
+                           [gen["training"].get(n)] + [fits[c["name"]].get(n) for c in conds]], dtype=float)
+              for n in names}
+    low, high = fit_range([v for vals in values.values() for v in vals])
+    fig, ax = new_figure(title="The generalisation gap: fit on the training condition and on conditions never "
+                               "seen, each model trained once and never re-identified", size=(9, 4.4))
+    styles = model_styles(names, [kinds.get(n) for n in names])
+    x = np.arange(len(labels))
+    clipped = 0
+    for n in names:
+        st = styles[n]
+        gap = values[n][0] - np.nanmin(values[n][1:]) if len(labels) > 1 else np.nan
+        ax.plot(x, values[n], marker=st["marker"], color=st["color"], ls=st["ls"], lw=1.2, ms=6,
+                label=n + (f" (largest drop {gap:.1f} points)" if np.isfinite(gap) else ""))
+    ax.set_ylim(low, high)
+    for n in names:
+        clipped += mark_clipped(ax, x, values[n], low, high, styles[n]["color"])
+    if clipped:
+        ax.set_title(f"{clipped} fit(s) below the range, marked by open triangles on the lower edge", fontsize=8)
+    ax.set_xticks(x, labels, fontsize=8)
+    ax.set_xlabel("operating condition")
+    ax.set_ylabel("fit (%)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    save_figure(fig, path)

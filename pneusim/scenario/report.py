@@ -1,21 +1,21 @@
 """Write a scenario's report: report.md, report.html (figures embedded), metrics.json, recordings, PNGs.
 
 The report is built once as a list of blocks (heading, paragraph, list, table,
-figure) and rendered twice, to Markdown and to self-contained HTML.  The
-paper-specific tables (``scenario.layout``) live in :mod:`.tables`.
+figure) and rendered twice, to Markdown and to self-contained HTML
+(:mod:`pneusim.plotting.page`).  The paper-specific tables (``scenario.layout``)
+live in :mod:`.tables`.
 """
 
 from __future__ import annotations
 
-import base64
 import csv
-import html
 import json
 import shlex
 from pathlib import Path
 
 import numpy as np
 
+from ..plotting import write_page
 from ..recording import write_recording
 from .identify import clean_row
 from .runner import ScenarioResult
@@ -63,58 +63,6 @@ def write_predictions(result: ScenarioResult, path) -> list[str]:
         for row in data:
             writer.writerow(["" if not np.isfinite(v) else repr(float(v)) for v in row])
     return names
-
-
-def _render_md(blocks) -> str:
-    out = []
-    for kind, payload in blocks:
-        if kind == "h":
-            level, text = payload
-            out.append("#" * level + " " + text)
-        elif kind == "p":
-            out.append(payload)
-        elif kind == "ul":
-            out.append("\n".join(f"* {item}" for item in payload))
-        elif kind == "table":
-            header, rows = payload
-            cell = lambda c: str(c).replace("|", "\\|")  # noqa: E731 - a pipe would split the cell
-            out.append("| " + " | ".join(map(cell, header)) + " |\n|" + "---|" * len(header) + "\n"
-                       + "\n".join("| " + " | ".join(map(cell, row)) + " |" for row in rows))
-        elif kind == "fig":
-            name, caption = payload
-            out.append(f"![{caption}]({name})\n\n*{caption}*")
-        elif kind == "code":
-            out.append(f"```\n{payload}\n```")
-    return "\n\n".join(out) + "\n"
-
-
-def _render_html(blocks, title: str, out: Path) -> str:
-    body = []
-    for kind, payload in blocks:
-        if kind == "h":
-            level, text = payload
-            body.append(f"<h{level}>{html.escape(text)}</h{level}>")
-        elif kind == "p":
-            body.append(f"<p>{html.escape(payload)}</p>")
-        elif kind == "ul":
-            body.append("<ul>" + "".join(f"<li>{html.escape(i)}</li>" for i in payload) + "</ul>")
-        elif kind == "table":
-            header, rows = payload
-            body.append("<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in header) + "</tr>"
-                        + "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>"
-                                  for row in rows) + "</table>")
-        elif kind == "fig":
-            name, caption = payload
-            data = base64.b64encode((out / name).read_bytes()).decode("ascii")
-            body.append(f'<figure><img alt="{html.escape(caption)}" src="data:image/png;base64,{data}">'
-                        f"<figcaption>{html.escape(caption)}</figcaption></figure>")
-        elif kind == "code":
-            body.append(f"<pre>{html.escape(payload)}</pre>")
-    style = ("body{font-family:sans-serif;max-width:60em;margin:2em auto;line-height:1.4}"
-             "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #999;padding:2px 6px;"
-             "font-size:90%}img{max-width:100%}figcaption{font-style:italic;font-size:90%}")
-    return (f"<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-            f"<style>{style}</style></head><body>\n" + "\n".join(body) + "\n</body></html>\n")
 
 
 def _variants_blocks(result: ScenarioResult) -> list:
@@ -205,6 +153,5 @@ def write_report(result: ScenarioResult, out_dir, scenario_path: str = "SCENARIO
     blocks += [b for b in gen_blocks if b[0] == "fig"]
     sets = "".join(f" --set {shlex.quote(o)}" for o in overrides)
     blocks += [("h", (2, "Reproduce")), ("code", f"pneusim run {scenario_path}{sets} --out {out_dir}")]
-    (out / "report.md").write_text(_render_md(blocks), encoding="utf-8")
-    (out / "report.html").write_text(_render_html(blocks, title, out), encoding="utf-8")
+    write_page(blocks, out, title, markdown="report.md", html_name="report.html")
     return metrics
