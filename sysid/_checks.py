@@ -51,7 +51,7 @@ def check_enough_data(n_samples: int, n_parameters: int, what: str) -> None:
     if n_samples <= n_parameters:
         raise SysidError(
             f"orders are too high for the data: {what} needs more than {n_parameters} usable samples, "
-            f"got {n_samples}.")
+            f"got {max(n_samples, 0)}.")
 
 
 def rms_scale(x, name: str) -> float:

@@ -62,6 +62,10 @@ With ``P(0) = c I`` the first update meets ``c |psi|^2``.
 """
 
 
+PRIOR_SHARE_LIMIT = 0.01
+"""Share of the prior ``P(0) = c I`` in the final weight along some direction above which :func:`rls` says so."""
+
+
 def _rls_orders(orders) -> tuple[int, int, int, int]:
     """``(na, nb, nc, nk)`` from ``[na, nb, nk]`` or ``[na, nb, nc, nk]``, with at least one parameter."""
     orders = list(orders) if np.iterable(orders) and not isinstance(orders, str) else orders
@@ -456,5 +460,29 @@ def rls(data: IDData, orders, forgetting: float = 1.0, initial_covariance: float
     res = RLSResult(est, hist, errs)
     from ._diagnose import finish
     finish(res.model_, data, "final RLS model")   # says so when the last estimate is unstable or B = 0
-    res.model_.warnings = est.warnings + res.model_.warnings
+    res.model_.warnings = est.warnings + res.model_.warnings + _prior_dominates(est, data)
     return res
+
+
+def _prior_dominates(est: RecursiveARX, data: IDData) -> list[str]:
+    """A sentence (issued as a warning) when, along some direction of ``theta``, the prior ``P(0) = c I``
+    still holds 1 % or more of the weight at the end, so the estimate there is pulled that far towards
+    ``theta(0)``.
+
+    ``P^-1 = sum_s lambda^(t-s) psi psi^T + lambda^t I / c``: along an eigenvector of ``P`` the prior's share
+    of the weight is ``P``'s eigenvalue over the prior's own ``c / lambda^t``.
+    """
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        prior_only = est.initial_covariance / est.forgetting ** est.n_updates
+        P = est.P
+        largest = float(np.max(np.linalg.eigvalsh(P))) if np.all(np.isfinite(P)) else float("nan")
+    share = largest / prior_only
+    if not share >= PRIOR_SHARE_LIMIT:
+        return []
+    msg = (f"final RLS model: along some direction of the parameters the prior P(0) = c I still holds "
+           f"{100 * min(share, 1.0):.3g} % of the weight (c = {est.initial_covariance:.4g}, |y| up to "
+           f"{float(np.max(np.abs(data.y))):.3g}, |u| up to {float(np.max(np.abs(data.u))):.3g}), so the estimate is "
+           f"pulled that far towards initial_parameters; excite the input more, or use a larger initial_covariance "
+           f"for signals of this size.")
+    _warnings.warn(msg, SysidWarning, stacklevel=3)
+    return [msg]

@@ -97,6 +97,7 @@ def test_tracks_step_change_at_forgetting_rate():
     assert ratios.max() / ratios.min() < 1.2, settle
 
 
+@pytest.mark.filterwarnings("ignore:final RLS model:sysid.SysidWarning")   # 300 samples: the prior still holds 4.5 %
 def test_online_update_matches_batch_and_returns_prior_error():
     data = _eq10_data(N=300, sigma=1e-3, seed=5)
     est = sysid.RecursiveARX(ORDERS, forgetting=0.98, initial_covariance=1000.0)
@@ -274,3 +275,16 @@ def test_recursive_sample_time_and_orders_are_checked():
     short = sysid.iddata(np.arange(10.0), np.ones(10), 1.0)
     with pytest.raises(sysid.SysidError, match=r"orders are too high for the data: rls with orders \[5, 5, 1\]"):
         sysid.rls(short, [5, 5, 1])
+
+
+def test_a_prior_that_still_weighs_in_the_final_estimate_is_said():
+    """The same record in km instead of m: c = 1000 is then a strong prior on the a's (|y| ~ 0.01), and the
+    estimate is pulled towards theta(0) = 0 (a1 = -1.28 for -1.5) -- said, with the prior's share."""
+    data = _second_order(N=3000)
+    assert sysid.rls(data, [2, 2, 1]).model_.warnings == []
+    small = sysid.iddata(data.y * 1e-3, data.u, 1.0)
+    with pytest.warns(sysid.SysidWarning, match=r"the prior P\(0\) = c I still holds 1\d\.?\d* % of the weight"):
+        res = sysid.rls(small, [2, 2, 1])
+    assert abs(res.model_.A[1] + 1.5) > 0.1                   # the pull is real
+    assert any("initial_covariance" in w for w in res.model_.warnings)
+    assert sysid.rls(small, [2, 2, 1], initial_covariance=1e7).model_.warnings == []
