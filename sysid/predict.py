@@ -181,7 +181,9 @@ def predict(model, data: IDData, k=1) -> np.ndarray:
 
     Uses ``y_hat = W_k G u + (1 - W_k) y`` with ``W_k = Hbar_k H^-1`` and
     ``Hbar_k`` the first ``k`` impulse-response terms of ``H = C/(A D)``
-    (Ljung 1999, eq. 3.31), zero initial conditions.
+    (Ljung 1999, eq. 3.31), zero initial conditions; an IDSS through its
+    Kalman predictor ``A - K C`` and ``k - 1`` free steps of ``A``
+    (:func:`sysid.state_response.predict_states`), the same predictor.
 
     Parameters
     ----------
