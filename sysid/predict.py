@@ -66,6 +66,13 @@ def _check_sample_time(model_Ts: float, data_Ts: float) -> None:
                          f"data or estimate the model at the data's sample time.")
 
 
+def _check_parameters_finite(model: IDSS) -> None:
+    bad = [name for name in ("A", "B", "C", "D", "K") if not np.all(np.isfinite(getattr(model, name)))]
+    if bad:
+        raise SysidError(f"model has non-finite entries (inf or NaN) in {', '.join(bad)}: it cannot be simulated "
+                         f"or predicted; re-estimate it (see model.warnings).")
+
+
 def _check_finite_ss(yhat, model: IDSS, what: str):
     """As :func:`_check_finite`, with the eigenvalues the state-space evaluation ran on."""
     if np.all(np.isfinite(yhat)):
@@ -142,6 +149,7 @@ def simulate(model, data_or_u, initial: str = "zero") -> np.ndarray:
     if initial == "estimate" and not isinstance(data_or_u, IDData):
         raise SysidError("initial='estimate' needs an IDData (the measured output is used).")
     if state_space:
+        _check_parameters_finite(model)
         return _simulate_ss(model, u, data_or_u.y if initial == "estimate" else None)
     num, den = m.G()
     with np.errstate(over="ignore", invalid="ignore"):
@@ -214,6 +222,7 @@ def predict(model, data: IDData, k=1) -> np.ndarray:
     k = int(k)
     if isinstance(model, IDSS):
         _check_sample_time(model.Ts, data.Ts)
+        _check_parameters_finite(model)
         with np.errstate(over="ignore", invalid="ignore"):
             yhat = predict_states(model.A, model.B, model.C, model.D, model.K, data.y, data.u, k)
         _check_finite_ss(yhat, model, f"{k}-step prediction")

@@ -132,3 +132,10 @@ def test_unstable_state_space_model_names_its_own_eigenvalue():
     m = IDSS(A, np.ones((2, 1)), np.ones((1, 2)), np.zeros((1, 1)), np.zeros((2, 1)), Ts=0.01)
     with pytest.raises(sysid.SysidError, match=r"model is unstable \(a pole has \|z\| = 1.5 > 1\)"):
         sysid.compare(_ss_data(0), m)
+
+
+def test_state_space_model_with_nan_is_refused_in_one_line():
+    m = IDSS(np.array([[np.nan]]), np.ones((1, 1)), np.ones((1, 1)), np.zeros((1, 1)), np.zeros((1, 1)), Ts=0.01)
+    for call in (lambda: sysid.compare(_ss_data(0), m), lambda: sysid.predict(m, _ss_data(0), 3)):
+        with pytest.raises(sysid.SysidError, match=r"^model has non-finite entries \(inf or NaN\) in A"):
+            call()
