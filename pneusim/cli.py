@@ -14,6 +14,7 @@ import os
 import sys
 
 from .errors import PneusimError
+from .shutdown import EXIT_TERMINATED, Terminated
 from .version import __version__
 
 __all__ = ["main", "run_command", "build_parser", "COMMANDS"]
@@ -73,7 +74,10 @@ def run_command(args: argparse.Namespace) -> int:
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"pneusim {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
+        if isinstance(exc, Terminated):
+            print("terminated (SIGTERM)", file=sys.stderr)
+            return EXIT_TERMINATED
         print("interrupted", file=sys.stderr)
         return 130
 

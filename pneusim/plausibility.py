@@ -1,19 +1,29 @@
-"""Whether a recording is one its rig could have made: commands inside the valve's range, pressures
-between atmosphere and supply, positions within the stroke; and the time spent at an end stop.
+"""Whether a recording is one its rig could have made: the rig that made it, commands inside the valve's
+range, pressures between atmosphere and supply, positions within the stroke, a sample time the rig
+samples at; and the time spent at an end stop.
 
 The recording format itself (:mod:`pneusim.recording`) knows no rig beyond its stroke; these checks
-need the rig's data sheet and come before a fit or a check reports on the recording.
+need the rig's data sheet and come before a fit, a diagnosis or a check reports on the recording.
+:func:`recording_rig` finds that data sheet: the rig given, else the rig file the recording was made
+with (which must still exist, unchanged), else the shipped rig it names.
 """
 
 from __future__ import annotations
 
+import hashlib
+import math
+from pathlib import Path
+from typing import Callable
+
 import numpy as np
 
-from .errors import InputFileError
+from .errors import InputFileError, PneusimError
 from .recording import POSITION_MARGIN, PRESSURE_COLUMNS, Recording
+from .rig import Rig, known_rig_names, load_rig
 
-__all__ = ["check_plausible", "end_stop_time", "end_stop_text", "COMMAND_MARGIN", "PRESSURE_LOW_MARGIN",
-           "PRESSURE_HIGH_MARGIN", "END_STOP_BAND"]
+__all__ = ["check_plausible", "check_sample_time", "recording_rig", "rig_file_sha256", "end_stop_time",
+           "end_stop_text", "COMMAND_MARGIN", "PRESSURE_LOW_MARGIN", "PRESSURE_HIGH_MARGIN", "END_STOP_BAND",
+           "SAMPLE_TIME_RTOL"]
 
 #: a command may exceed the valve's range by this fraction of the range (rounding of a DAQ)
 COMMAND_MARGIN = 0.01
@@ -24,17 +34,92 @@ PRESSURE_LOW_MARGIN = 0.2
 PRESSURE_HIGH_MARGIN = 0.1
 #: a position within this fraction of the stroke from an end counts as "at the end stop"
 END_STOP_BAND = 0.005
+#: sample times closer than this (relative) are the same sample time (a decimal written in a file)
+SAMPLE_TIME_RTOL = 1e-9
+
+
+def rig_file_sha256(path) -> str:
+    """SHA-256 (hex) of a rig file's bytes: a recording keeps it (``rig_file_sha256``) beside ``rig_file``,
+    so that a rig file changed since the recording was made is not taken for the one that made it."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def recording_rig(recording: Recording, rig=None, *, where: str | None = None,
+                  load: Callable[[str], Rig] = load_rig) -> Rig:
+    """The rig a recording is checked, fitted, diagnosed or re-run against (its data sheet; the
+    recording's ``rig_overrides`` are not applied).
+
+    ``rig`` (a :class:`~pneusim.rig.Rig`, a shipped name or a rig file) wins.  Else the rig file of the
+    recording's ``rig_file`` metadata, which must still exist and, where the recording keeps its
+    ``rig_file_sha256``, be unchanged: a recording made on a rig file is never silently re-run on the
+    shipped rig of the same name.  Else its ``rig`` name, which must be a shipped rig.  ``load`` loads a
+    name or a file (the commands pass one that also checks the rig file's other sections).
+
+    Raises
+    ------
+    PneusimError
+        One sentence naming the recording, the metadata key and what to give instead.
+    """
+    where = where or str(recording.source or "the recording")
+    if isinstance(rig, Rig):
+        return rig
+    if rig:
+        return load(str(rig))
+    meta = recording.metadata
+    name = recording.rig
+    rig_file = meta.get("rig_file")
+    if rig_file:
+        if not Path(rig_file).is_file():
+            shipped = f"; it is not the shipped rig {name}" if name in known_rig_names() else ""
+            raise PneusimError(f"{where}: metadata 'rig_file: {rig_file}': the rig file the recording was made "
+                               f"with no longer exists{shipped}; give --rig FILE.toml, that rig file")
+        kept = meta.get("rig_file_sha256")
+        if kept and kept != rig_file_sha256(rig_file):
+            raise PneusimError(f"{where}: metadata 'rig_file: {rig_file}': the rig file has changed since the "
+                               "recording was made (rig_file_sha256 differs); give --rig "
+                               f"{rig_file} to use it as it is now, or the rig file as it was")
+        return load(rig_file)
+    if not name:
+        raise PneusimError(f"{where} names no rig in its metadata ('# rig: ...'); give --rig NAME or --rig FILE.toml")
+    try:
+        return load(name)
+    except PneusimError as exc:
+        if "unknown rig" not in str(exc):
+            raise   # a rig file that exists but is broken: its own message names the field
+        raise PneusimError(f"{where}: metadata 'rig: {name}' is not a known rig (shipped: "
+                           f"{', '.join(known_rig_names())}); give --rig FILE.toml, the rig file of "
+                           "the rig that recorded it") from None
+
+
+def check_sample_time(recording: Recording, rig) -> None:
+    """Refuse a recording of another rig at another sample time: the recording names a rig other than
+    ``rig`` *and* was sampled at another rate than ``rig`` samples at.
+
+    Either alone is allowed (a user's copy of a data sheet under another name; the rig that made it, run
+    at another sample time); both together say the recording is checked against the wrong rig, and a
+    fit or a diagnosis against that data sheet would bend the model to it and name effects that are
+    not there.
+    """
+    ts, rig_ts = recording.sample_time_s, rig.sample_time_s
+    named = recording.rig
+    if math.isclose(ts, rig_ts, rel_tol=SAMPLE_TIME_RTOL) or not named or named == rig.name:
+        return
+    raise InputFileError(f"recorded every {ts:g} s by rig {named!r}, while rig {rig.name} samples every {rig_ts:g} s: "
+                         f"this is not a recording of {rig.name}; give --rig {named} (or the rig file of the rig "
+                         "that recorded it)", path=recording.source, field="sample_time_s")
 
 
 def check_plausible(recording: Recording, rig) -> None:
     """Refuse a recording that its rig cannot have made (one :class:`InputFileError` naming the sample).
 
-    Checks: every valve command inside ``[valve_min_V, valve_max_V]`` (give or take
+    Checks: the sample time (:func:`check_sample_time`); every valve command inside
+    ``[valve_min_V, valve_max_V]`` (give or take
     :data:`COMMAND_MARGIN` of the range); every pressure (A, B, supply) between a little below
     atmosphere/exhaust and a little above the supply (:data:`PRESSURE_LOW_MARGIN`,
     :data:`PRESSURE_HIGH_MARGIN`: a pressure written in bar or kPa is refused); every position and
     reference within [-1 %, 101 %] of the rig's stroke.  Gaps (NaN) are skipped.
     """
+    check_sample_time(recording, rig)
     p = rig.params
     lo_v, hi_v = p["valve_min_V"], p["valve_max_V"]
     margin_v = COMMAND_MARGIN * (hi_v - lo_v)

@@ -28,6 +28,7 @@ from typing import Mapping
 import numpy as np
 
 from .errors import InputFileError
+from .outputs import atomic_path, write_text_atomic
 
 __all__ = ["Recording", "read_recording", "write_recording", "summarize", "FORMAT",
            "REQUIRED_COLUMNS", "OPTIONAL_COLUMNS", "PRESSURE_COLUMNS", "MIN_SAMPLES"]
@@ -443,7 +444,8 @@ def write_recording(recording: Recording, path: str | Path, significant_digits: 
     recording:
         What to write.
     path:
-        Target file; overwritten.
+        Target file; replaced atomically (a temporary file in the same folder, then renamed: a failed
+        write leaves the previous file whole).
     significant_digits:
         CSV only: digits of every column but ``time_s`` (``None``: full
         precision, an exact round trip).  ``time_s`` is always written in full.
@@ -459,7 +461,7 @@ def write_recording(recording: Recording, path: str | Path, significant_digits: 
         text_cols = [[("" if v != v else (repr(v) if name == "time_s" else fmt(v))) for v in values.tolist()]
                      for name, values in cols.items()]
         lines.extend(",".join(row) for row in zip(*text_cols))
-        path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+        write_text_atomic(path, "\n".join(lines) + "\n")
     elif suffix == ".mat":
         import scipy.io
 
@@ -469,7 +471,8 @@ def write_recording(recording: Recording, path: str | Path, significant_digits: 
         out: dict[str, object] = {k: v for k, v in recording.metadata.items() if k != "sample_time_s"}
         out["sample_time_s"] = recording.sample_time_s
         out.update({name: values.reshape(-1, 1) for name, values in cols.items()})
-        scipy.io.savemat(path, out, oned_as="column")
+        with atomic_path(path) as tmp:
+            scipy.io.savemat(tmp, out, oned_as="column")
     else:
         raise InputFileError(f"unknown file type {path.suffix or '(none)'!r}; expected .csv or .mat", path=path)
 

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Mapping
 
 from .errors import InputFileError, PneusimError
+from .outputs import write_text_atomic
 from .tomlfile import read_toml
 
 __all__ = ["Rig", "load_rig", "known_rig_names", "rig_variant_names", "known_stroke_m", "RIG_SECTIONS",
@@ -228,10 +229,8 @@ def _toml_value(value) -> str:
 
 def write_rig(rig: Rig, path: str | Path, effects=()) -> Path:
     """Write ``rig`` (and ``effects``, as ``[effects.NAME]`` tables) as a rig file (``.toml``) that
-    ``load_rig`` and ``--rig PATH`` accept."""
-    path = Path(path)
-    path.write_text(rig.to_toml(effects), encoding="utf-8")
-    return path
+    ``load_rig`` and ``--rig PATH`` accept (written atomically: the file is whole or not replaced)."""
+    return write_text_atomic(path, rig.to_toml(effects))
 
 
 def known_rig_names() -> list[str]:

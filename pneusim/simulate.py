@@ -29,6 +29,7 @@ from .errors import InputFileError, PneusimError
 from .experiment import Experiment
 from .model import ActuatorModel, Effect, parse_effect_text
 from .plant import SimulatedPlant
+from .plausibility import rig_file_sha256
 from .recording import Recording
 from .rig import Rig
 from .version import __version__
@@ -235,6 +236,8 @@ def _metadata(rig: Rig, experiment: Experiment, plant: SimulatedPlant, seed: int
     meta["rig_overrides"] = ";".join(f"{k}={float(v)!r}" for k, v in sorted(overrides.items())) or "none"
     if rig.source and not getattr(rig, "is_shipped", True):
         meta["rig_file"] = str(Path(rig.source).resolve())   # --like finds it from any folder
+        if Path(rig.source).is_file():   # and knows whether it changed since (pneusim.plausibility.recording_rig)
+            meta["rig_file_sha256"] = rig_file_sha256(rig.source)
     meta.update({k: str(v) for k, v in experiment.metadata.items()})
     return meta
 

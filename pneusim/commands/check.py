@@ -7,7 +7,7 @@ import sys
 from ..errors import PneusimError
 from ..plausibility import check_plausible, end_stop_text
 from ..recording import read_recording, summarize
-from .common import rig_for_recording
+from .common import recording_provenance, rig_for_recording
 
 
 def register(sub) -> None:
@@ -15,8 +15,10 @@ def register(sub) -> None:
                        description="Read pneusim-recording/1 files (CSV or .mat), refuse each with a clear "
                                    "message if it breaks the format or cannot come from its rig (commands outside "
                                    "the valve's range, pressures outside atmosphere .. supply, positions outside "
-                                   "the stroke, an unknown rig), else print a summary with the time spent at an "
-                                   "end stop.  Exit 0 when every file is valid, 2 otherwise.")
+                                   "the stroke, a sample time of another rig, an unknown rig or a rig file gone or "
+                                   "changed, metadata that simulate --like would refuse), else print a summary "
+                                   "with the time spent at an end stop.  Exit 0 when every file is valid, 2 "
+                                   "otherwise.")
     p.add_argument("recording", metavar="RECORDING", nargs="+", help="one or more recordings (.csv or .mat)")
     p.add_argument("--rig", help="the rig to check against (a shipped name or a rig file .toml); default: the "
                                  "rig each recording names in its metadata")
@@ -25,9 +27,14 @@ def register(sub) -> None:
 
 
 def check_one(path: str, rig_option: str | None = None):
-    """Read ``path`` and check it against its rig; return ``(recording, rig)`` or raise PneusimError."""
+    """Read ``path`` and check it against its rig; return ``(recording, rig)`` or raise PneusimError.
+
+    Valid means: the format; the metadata that says what made the recording (effects, rig overrides,
+    seed, noise scale), which ``pneusim simulate --like`` reads back; the rig that made it (its rig file
+    still there and unchanged, with its overrides); and values that rig could have recorded."""
     rec = read_recording(path)
-    rig = rig_for_recording(rec, path, rig_option)
+    recording_provenance(rec, path)
+    rig = rig_for_recording(rec, path, rig_option, use_metadata_overrides=True)
     check_plausible(rec, rig)
     return rec, rig
 

@@ -10,7 +10,9 @@ from pathlib import Path
 from ..errors import PneusimError
 from ..model import Effect, parse_effect_text
 from ..mre.daq import daq_config
-from ..rig import Rig, known_rig_names, load_rig
+from ..outputs import ResultsFolder, command_text, refuse_inputs_as_outputs
+from ..plausibility import recording_rig
+from ..rig import Rig, load_rig
 from ..simulate import rig_effects
 
 
@@ -38,6 +40,25 @@ def output_folder(path, option: str) -> Path:
     if not os.access(out, os.W_OK):
         raise PneusimError(f"{option} {path}: the folder cannot be written")
     return out
+
+
+def results_folder(args, path, option: str, identity=None, *, policy: str = "refuse", known=(), markers=None,
+                   keep=(), inputs=None) -> ResultsFolder:
+    """The command's results folder (:class:`pneusim.outputs.ResultsFolder`), prepared: created, refused
+    or cleared when it holds another run's results (``--overwrite`` where the command has it), its notes
+    printed.  Call ``finish()`` on it once the results are written."""
+    folder = ResultsFolder(path, option, command_text(getattr(args, "argv", None), args.command), identity,
+                           policy=policy, overwrite=getattr(args, "overwrite", False), known=known, markers=markers,
+                           keep=keep, inputs=inputs)
+    for note in folder.prepare():
+        print(f"pneusim {args.command}: note: {note}")
+    return folder
+
+
+def add_overwrite_argument(parser, what: str = "results") -> None:
+    parser.add_argument("--overwrite", action="store_true",
+                        help=f"replace the {what} of another run in the output folder (default: refuse such a "
+                             "folder; a rerun of the same inputs replaces its own results)")
 
 
 def parse_param_overrides(items: list[str] | None) -> dict[str, float]:
@@ -142,29 +163,41 @@ def rig_for_recording(recording, path: str, rig_option: str | None, params: list
                       use_metadata_overrides: bool = False) -> Rig:
     """The rig a recording is checked, fitted or re-run against.
 
-    ``--rig`` (a shipped name or a rig file) wins; else the recording's ``rig_file`` metadata when
-    that file exists, else its ``rig`` name, which must be known.  ``use_metadata_overrides`` applies
-    the recording's ``rig_overrides`` (a re-run); ``--param`` overrides come last.
+    ``--rig`` (a shipped name or a rig file) wins; else the recording's ``rig_file`` metadata, which must
+    still exist unchanged (:func:`pneusim.plausibility.recording_rig`), else its ``rig`` name, which must
+    be known.  ``use_metadata_overrides`` applies the recording's ``rig_overrides`` (a re-run, a check);
+    ``--param`` overrides come last.
     """
-    meta = recording.metadata
-    if rig_option:
-        rig = load_rig_file(rig_option)
-    else:
-        name = recording.rig
-        rig_file = meta.get("rig_file")
-        if rig_file and Path(rig_file).is_file():
-            rig = load_rig_file(rig_file)
-        elif not name:
-            raise PneusimError(f"{path} names no rig in its metadata ('# rig: ...'); give --rig NAME or --rig FILE.toml")
-        else:
-            try:
-                rig = load_rig_file(name)
-            except PneusimError as exc:
-                if "unknown rig" not in str(exc):
-                    raise   # a rig file that exists but is broken: its own message names the field
-                raise PneusimError(f"{path}: metadata 'rig: {name}' is not a known rig (shipped: "
-                                   f"{', '.join(known_rig_names())}); give --rig FILE.toml, the rig file of "
-                                   "the rig that recorded it") from None
-        if use_metadata_overrides:
-            rig = rig.with_params(overrides_from_metadata(meta, path), origin=f"{path} rig_overrides")
+    rig = recording_rig(recording, rig_option, where=path, load=load_rig_file)
+    if use_metadata_overrides and not rig_option:
+        rig = rig.with_params(overrides_from_metadata(recording.metadata, path), origin=f"{path} rig_overrides")
     return rig.with_params(parse_param_overrides(params), origin="--param")
+
+
+def recording_provenance(recording, path: str) -> dict:
+    """What a recording says made it, checked: ``{"effects", "rig_overrides", "seed", "noise_scale"}``
+    (``None`` where the metadata does not say).  ``pneusim simulate --like`` re-runs with these, and
+    ``pneusim check`` refuses what it would refuse, in one line naming the metadata key."""
+    meta = recording.metadata
+    try:
+        effects = effects_from_metadata(meta)
+    except PneusimError as exc:
+        raise PneusimError(f"{path}: metadata 'effects: {meta.get('effects')}': {exc}") from None
+    return {"effects": effects, "rig_overrides": overrides_from_metadata(meta, path),
+            "seed": _metadata_number(meta, "seed", path, whole=True),
+            "noise_scale": _metadata_number(meta, "noise_scale", path, whole=False)}
+
+
+def _metadata_number(meta, key: str, path: str, whole: bool):
+    """A seed (whole number >= 0) or a noise scale (finite number >= 0) from the metadata, or None."""
+    text = meta.get(key)
+    if text is None:
+        return None
+    try:
+        value = int(text) if whole else float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0 and (not whole or value <= 2**32 - 1)):
+        expected = "a whole number >= 0 (a seed)" if whole else "a finite number >= 0"
+        raise PneusimError(f"{path}: metadata '{key}: {text}': expected {expected}")
+    return value

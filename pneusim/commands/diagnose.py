@@ -3,11 +3,21 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from ..errors import PneusimError
 from ..model import EFFECTS
-from .common import load_rig_file, output_file, output_folder
+from ..outputs import file_digest, same_file, write_json_atomic
+from ..plausibility import check_plausible
+from ..recording import read_recording
+from .common import (add_overwrite_argument, load_rig_file, output_file, refuse_inputs_as_outputs, results_folder,
+                     rig_for_recording)
+
+#: what a diagnosis report folder holds (pneusim.diagnosis.report.write_report)
+REPORT_FILES = ("index.html", "report.md", "diagnosis.json", "*.png")
+#: what the folder of several recordings' diagnoses holds beside their report folders
+BATCH_FILES = ("summary.csv", "summary.md", "*.json", "*/index.html", "*/report.md", "*/diagnosis.json", "*/*.png")
 
 EXAMPLES = """examples:
   pneusim diagnose run.csv --json diagnosis.json --report diagnosis/     # open diagnosis/index.html
@@ -18,8 +28,11 @@ EXAMPLES = """examples:
 One recording: prints the findings (the JSON of shared/spec/diagnosis.md with --json; the report folder
 with --report: index.html, report.md, fit.png, residuals.png, one evidence plot per finding).
 Several recordings or a folder: runs them in parallel (local processes by default, or Dask)
-and writes DIR/STEM/ (report), DIR/STEM.json and DIR/summary.csv + summary.md (one row per recording;
-a recording that fails is a row with its error, the others go on).  Exit code 2 for bad input."""
+and writes DIR/NAME/ (report), DIR/NAME.json and DIR/summary.csv + summary.md (one row per recording;
+a recording that fails is a row with its error, the others go on; NAME is the file's stem, told apart
+where two recordings share one).  A recording is checked against its rig first (the rig that made it,
+values it could have recorded).  A DIR holding the results of another diagnosis is refused unless
+--overwrite is given.  Exit code 2 for bad input, and when any of several recordings failed."""
 
 
 def register(sub) -> None:
@@ -49,6 +62,7 @@ def register(sub) -> None:
     p.add_argument("--workers", metavar="N", type=int, default=None,
                    help="several recordings: local processes or Dask workers (default: CPU count; 0: in-process)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    add_overwrite_argument(p, "diagnosis")
     p.set_defaults(func=run)
 
 
@@ -56,7 +70,7 @@ def run(args) -> int:
     # the diagnosis imports SciPy and the fit (about a second): imported when the command runs, so that
     # pneusim --help and the other commands start without it
     from ..diagnosis import diagnose
-    from ..diagnosis.batch import diagnose_many, expand_recordings
+    from ..diagnosis.batch import diagnose_many, expand_recordings, output_names
     from ..diagnosis.report import write_report
 
     for name in args.effect or []:
@@ -72,31 +86,60 @@ def run(args) -> int:
     files = expand_recordings(args.recordings)
     options = {"effects": args.effect, "validation_fraction": args.validation_fraction,
                "max_refits": args.max_refits, "max_lookalikes": args.max_lookalikes}
+    identity = {"recordings": [file_digest(f) for f in files], "rig": args.rig, "options": options}
+    inputs = {f"the recording {f}": f for f in files}
     many = len(files) > 1 or any(Path(r).is_dir() for r in args.recordings)
     if many:
-        if args.json:
-            raise PneusimError("--json writes one recording's result; with several recordings give --report DIR "
-                               "(each result is DIR/STEM.json, the table DIR/summary.csv)")
-        if not args.report:
-            raise PneusimError("several recordings need --report DIR for their results and the summary table")
-        out = output_folder(args.report, "--report")
-        rows = diagnose_many(files, out, args.rig, workers=args.workers, dask=args.dask,
-                             progress=not args.quiet, **options)
-        failed = [r for r in rows if r["status"] != "ok"]
-        for r in rows:
-            state = r["findings"] if r["status"] == "ok" else f"FAILED: {r['error']}"
-            print(f"{r['recording']}: {state}")
-        print(f"wrote {out}/summary.csv and summary.md: {len(rows)} recordings, {len(failed)} failed")
-        return 1 if failed and len(failed) == len(rows) else 0
+        return _diagnose_many(args, files, options, identity, inputs, diagnose_many, output_names)
     if args.json:
         output_file(args.json, "--json", (".json",))
+    recording = read_recording(files[0])
+    rig = rig_for_recording(recording, str(files[0]), args.rig)
+    check_plausible(recording, rig)    # the rig that made it, values it could have recorded: before any work
+    if args.rig and recording.rig and recording.rig != rig.name:
+        print(f"pneusim diagnose: warning: --rig {args.rig} ({rig.name}) differs from the rig the recording names "
+              f"('rig: {recording.rig}'): the diagnosis reads {recording.rig}'s data with {rig.name}'s known values",
+              file=sys.stderr)
+    folder = None
     if args.report:
-        output_folder(args.report, "--report")
-    result = diagnose(files[0], args.rig, progress=not args.quiet, **options)
+        folder = results_folder(args, args.report, "--report", identity, known=REPORT_FILES,
+                                markers=("index.html", "diagnosis.json"), inputs=inputs)
+    result = diagnose(recording, rig, progress=not args.quiet, **options)
     print(result.summary())
     if args.json:
-        result.write_json(args.json)
+        write_json_atomic(args.json, result.to_dict(), indent=1, allow_nan=False)
         print(f"wrote {args.json}")
     if args.report:
         print(f"wrote {write_report(result, args.report)}")
+        folder.finish()
+    return 0
+
+
+def _diagnose_many(args, files, options, identity, inputs, diagnose_many, output_names) -> int:
+    """Several recordings: the report folder checked, the diagnoses run, one line each and the summary."""
+    if args.json:
+        raise PneusimError("--json writes one recording's result; with several recordings give --report DIR "
+                           "(each result is DIR/NAME.json, the table DIR/summary.csv)")
+    if not args.report:
+        raise PneusimError("several recordings need --report DIR for their results and the summary table")
+    for item in args.recordings:
+        if Path(item).is_dir() and Path(args.report).is_dir() and same_file(item, args.report):
+            raise PneusimError(f"--report {args.report}: that is a folder of the recordings diagnosed ({item}); "
+                               "its results would be read as recordings next time: give another folder")
+    out = Path(args.report)
+    refuse_inputs_as_outputs({"--report": [out / "summary.csv", out / "summary.md"]
+                              + [out / f"{n}.json" for n in output_names(files)]}, inputs)
+    folder = results_folder(args, out, "--report", identity, known=BATCH_FILES, markers=("summary.csv",),
+                            inputs=inputs)
+    rows = diagnose_many(files, out, args.rig, workers=args.workers, dask=args.dask, progress=not args.quiet,
+                         **options)
+    folder.finish()
+    failed = [r for r in rows if r["status"] != "ok"]
+    for r in rows:
+        state = r["findings"] if r["status"] == "ok" else f"FAILED: {r['error']}"
+        print(f"{r['recording']}: {state}")
+    print(f"wrote {out}/summary.csv and summary.md: {len(rows)} recordings, {len(failed)} failed")
+    if failed:
+        raise PneusimError(f"{len(failed)} of {len(rows)} recordings failed (their errors are in "
+                           f"{out / 'summary.csv'}); the others' results are written")
     return 0

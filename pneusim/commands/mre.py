@@ -6,11 +6,16 @@ import os
 import sys
 
 from ..errors import PneusimError
+from ..loop.sample_loop import STOP_INTERRUPTED, STOP_TERMINATED
 from ..mre.plants import parse_plant
 from ..mre.rt import DEFAULT_PRIORITY, RealtimeSettings
 from ..mre.run import run_mre
 from ..mre.scenario import load_mre
-from .common import DURATION, number_type, output_folder
+from ..shutdown import EXIT_TERMINATED, sigterm_raises
+from .common import DURATION, add_overwrite_argument, number_type, results_folder
+
+#: what an MRE run writes into its folder (pneusim.mre.run.run_mre and its report)
+RUN_FILES = ("recording.csv", "summary.json", "coefficients.npz", "report.md", "report.html", "*.png")
 
 CPU = number_type("a CPU number >= 0", 0, integer=True)
 PRIORITY = number_type("a SCHED_FIFO priority in 0..99 (0: normal scheduling)", 0, 99, integer=True)
@@ -21,9 +26,11 @@ def register(sub) -> None:
         "mre", help="run controller, online identifiers and a plant in one real-time loop",
         description="Run an MRE file (example: scenarios/mre-paper1.toml): the controller and the online identifiers in one "
                     "loop at the rig's sample time, against a simulated, replayed, networked (UDP) or real (NI DAQ) "
-                    "plant. The recording is written row by row to OUT/recording.csv; Ctrl-C, a fault or too many "
-                    "overruns stop the loop with the valve at its null and everything so far on disk. A report "
-                    "(identified transfer functions, h-step predictions, coefficient traces, timing) follows.")
+                    "plant. The recording is written row by row to OUT/recording.csv; Ctrl-C, SIGTERM, a fault or "
+                    "too many overruns stop the loop with the valve at its null and everything so far on disk. A "
+                    "report (identified transfer functions, h-step predictions, coefficient traces, timing) "
+                    "follows. An OUT holding an earlier run is refused (a measured run is never replaced) unless "
+                    "--overwrite is given.")
     p.add_argument("file", metavar="FILE", help="MRE file (.toml), e.g. scenarios/mre-paper1.toml")
     p.add_argument("--plant", metavar="PLANT", default=None,
                    help="sim (the simulator), replay:FILE (a recording played back: open loop), udp:HOST:PORT "
@@ -36,6 +43,7 @@ def register(sub) -> None:
     mode.add_argument("--fast", dest="mode", action="store_const", const="fast",
                       help="run as fast as possible (rehearsal; same components and results)")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    add_overwrite_argument(p, "recording, summary and report")
     p.add_argument("--no-status", action="store_true", help="no live status line")
     p.add_argument("--no-report", action="store_true", help="skip the report (recording and summary only)")
     p.add_argument("--cpu", type=CPU, default=None, metavar="N",
@@ -52,9 +60,11 @@ def register(sub) -> None:
 def run(args, run_mre=run_mre) -> int:
     """The command; ``run_mre`` replaces :func:`pneusim.mre.run.run_mre` (tests inject a fault)."""
     spec = load_mre(args.file)
-    if args.plant is not None:
-        parse_plant(args.plant)
-    out = output_folder(args.out, "--out")
+    choice = parse_plant(args.plant if args.plant is not None else spec["mre"]["plant"])
+    inputs = {"the MRE file": args.file, f"the recording played back (--plant {choice.text})": choice.path or None}
+    folder = results_folder(args, args.out, "--out", policy="measured", known=RUN_FILES,
+                            markers=("summary.json", "recording.csv", "coefficients.npz"), inputs=inputs)
+    out = folder.path
     if args.cpu is not None:
         try:
             os.sched_setaffinity(0, {args.cpu})
@@ -62,8 +72,10 @@ def run(args, run_mre=run_mre) -> int:
             raise PneusimError(f"--cpu {args.cpu}: cannot pin the process to that CPU "
                                f"({getattr(exc, 'strerror', None) or exc})") from None
     rt = RealtimeSettings(priority=args.rt_priority, lock_memory=args.lock_memory, timer_slack=True)
-    mr = run_mre(spec, out, plant=args.plant, mode=args.mode, duration_s=args.duration,
-                 status=not args.no_status and sys.stderr.isatty(), report=not args.no_report, rt=rt)
+    with sigterm_raises():      # SIGTERM stops the loop as Ctrl-C does: valve to null, recording and summary kept
+        mr = run_mre(spec, out, plant=args.plant, mode=args.mode, duration_s=args.duration,
+                     status=not args.no_status and sys.stderr.isatty(), report=not args.no_report, rt=rt)
+    folder.finish()
     s = mr.summary
     for notice in s["realtime_os"]["notices"]:
         print(notice, file=sys.stderr)
@@ -90,9 +102,10 @@ def run(args, run_mre=run_mre) -> int:
         print(f"{name}: {mdl['transfer_function']}")
     print(f"written: {out / 'recording.csv'}, summary.json, coefficients.npz"
           + ("" if args.no_report else ", report.md"))
-    if s["stop_reason"].startswith("interrupted"):
-        print("interrupted: the valve was sent to its null; the recording holds every sample taken", file=sys.stderr)
-        return 130
+    if s["stop_reason"] in (STOP_INTERRUPTED, STOP_TERMINATED):
+        print(f"{s['stop_reason']}: the valve was sent to its null; the recording holds every sample taken",
+              file=sys.stderr)
+        return 130 if s["stop_reason"] == STOP_INTERRUPTED else EXIT_TERMINATED
     if s["stop_reason"] != "completed":
         short = " (fewer than 50: too short for pneusim check)" if s["samples"] < 50 else ""
         raise PneusimError(f"the run stopped early ({s['stop_reason']}: {s['error']}); the valve was sent to its "

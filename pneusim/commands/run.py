@@ -5,7 +5,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import output_folder
+from ..runid import run_context
+from .common import add_overwrite_argument, results_folder
+
+#: what a scenario's report folder holds (pneusim.scenario.report.write_report); the PNG figures vary
+REPORT_FILES = ("report.md", "report.html", "metrics.json", "recording.csv", "predictions.csv", "variant-*.csv",
+                "*.png")
 
 EXAMPLES = """examples:
   pneusim run scenarios/paper1-online-rls.toml --out results/paper1
@@ -14,8 +19,9 @@ EXAMPLES = """examples:
 
 Writes into DIR: report.md, report.html (self-contained, figures embedded), metrics.json (every number of
 the report), recording.csv and variant-*.csv (the simulated runs, pneusim-recording/1), predictions.csv (each
-model's output beside the data it was scored on) and the PNG figures.  The schema of scenario files is
-documented in scenarios/README.md."""
+model's output beside the data it was scored on) and the PNG figures.  DIR holding the results of another
+run (another scenario, other --set values, a changed rig file) is refused unless --overwrite is given; the
+same run again replaces its own results.  The schema of scenario files is documented in scenarios/README.md."""
 
 
 def register(sub) -> None:
@@ -28,6 +34,7 @@ def register(sub) -> None:
                    help="change a scenario key by its dotted path for this run (VALUE is a TOML value), "
                         "e.g. experiment.duration_s=5 or identifiers.0.order=4; repeatable")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_overwrite_argument(p)
     p.set_defaults(func=run)
 
 
@@ -44,9 +51,13 @@ def run(args) -> int:
         for key, value in parse_set_items(args.set).items():
             set_dotted(spec, key, value, where=where)
         spec = validate_scenario(spec, where=where)
-    out = output_folder(args.out or Path("results") / spec["scenario"]["name"], "--out")
+    out = Path(args.out or Path("results") / spec["scenario"]["name"])
+    # the folder's run is the validated scenario (the --set values applied) and the rig files it names
+    folder = results_folder(args, out, "--out", run_context(spec), known=REPORT_FILES,
+                            markers=("metrics.json", "report.html"), inputs={"the scenario file": args.scenario})
     result = run_scenario(spec, progress=not args.no_progress)
     write_report(result, out, scenario_path=args.scenario, overrides=list(args.set))
+    folder.finish()
     ok = sum(r["status"] == "ok" for r in result.rows)
     print(f"wrote {out}/report.md, report.html, metrics.json: {ok} of {len(result.rows)} rows scored, "
           f"{result.timings_s['total_s']:.1f} s")

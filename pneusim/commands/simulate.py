@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import shlex
 import sys
 
@@ -12,8 +11,8 @@ from ..plausibility import end_stop_text
 from ..plots import plot_recording
 from ..recording import MIN_SAMPLES, read_recording, write_recording
 from ..simulate import rerun_recording, rig_effects, simulate
-from .common import (DURATION, NOISE_SCALE, SEED, add_rig_arguments, effects_from_metadata, output_file,
-                     parse_effects, rig_for_recording, rig_with_overrides)
+from .common import (DURATION, NOISE_SCALE, SEED, add_rig_arguments, output_file, parse_effects,
+                     recording_provenance, refuse_inputs_as_outputs, rig_for_recording, rig_with_overrides)
 
 BACKENDS = ("cvode", "scipy-radau", "scipy-bdf", "scipy-lsoda")
 
@@ -49,11 +48,15 @@ def run(args) -> int:
     out = output_file(args.out, "--out", (".csv", ".mat"))
     if args.plot:
         output_file(args.plot, "--plot", (".png", ".svg"))
+    rig_file = args.rig if args.rig and args.rig.lower().endswith(".toml") else None
+    refuse_inputs_as_outputs({"--out": args.out, "--plot": args.plot},
+                             {"the recording given with --like": args.like, "the rig file given with --rig": rig_file})
     effects = parse_effects(args.effect)
     if args.like:
         if args.input:
             raise PneusimError("give either --input or --like, not both")
         recording = read_recording(args.like)
+        made = recording_provenance(recording, args.like)
         if args.loop and recording.loop and args.loop != recording.loop:
             raise PneusimError(f"--loop {args.loop}: {args.like} is a recording in {recording.loop} loop, "
                                "and --like re-runs its experiment as it was")
@@ -61,9 +64,10 @@ def run(args) -> int:
         if abs(recording.sample_time_s - rig.sample_time_s) > 1e-12:
             rig = rig.with_params({"sample_time_s": recording.sample_time_s})
         if not args.effect:
-            effects = effects_from_metadata(recording.metadata)
-        seed = args.seed if args.seed is not None else _int_meta(recording, "seed", 0)
-        noise = args.noise_scale if args.noise_scale is not None else _float_meta(recording, "noise_scale", 1.0)
+            effects = made["effects"]
+        seed = args.seed if args.seed is not None else (made["seed"] if made["seed"] is not None else 0)
+        noise = args.noise_scale if args.noise_scale is not None else (
+            made["noise_scale"] if made["noise_scale"] is not None else 1.0)
         if args.duration is not None:
             span = recording.n_samples * recording.sample_time_s
             n = int(round(args.duration / recording.sample_time_s))
@@ -101,28 +105,3 @@ def run(args) -> int:
         print(f"wrote {args.plot}")
     return 0
 
-
-def _int_meta(recording, key: str, default: int) -> int:
-    text = recording.metadata.get(key)
-    if text is None:
-        return default
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise PneusimError(f"{recording.source}: metadata '{key}: {text}': expected a whole number >= 0")
-    return value
-
-
-def _float_meta(recording, key: str, default: float) -> float:
-    text = recording.metadata.get(key)
-    if text is None:
-        return default
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value >= 0):
-        raise PneusimError(f"{recording.source}: metadata '{key}: {text}': expected a finite number >= 0")
-    return value

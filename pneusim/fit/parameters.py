@@ -91,11 +91,21 @@ def _within_effect_range(name: str, lo: float, hi: float, magnitude: float) -> t
 
 def check_free(names: Sequence[str], param_names: Sequence[str]) -> None:
     """Refuse free parameters the model does not have, or listed twice.  A parameter the data sheet
-    marks as known may be freed on request: a user may doubt a data-sheet value."""
+    marks as known may be freed on request: a user may doubt a data-sheet value.
+
+    An ``EFFECT.PARAM`` name is refused for what is wrong with it: an effect that does not exist, an
+    effect that is not switched on, or a parameter the switched-on effect does not have."""
     for name in names:
         if name not in param_names:
-            effect = name.partition(".")[0] if "." in name else None
-            if effect:
+            effect, dot, key = name.partition(".")
+            if dot:
+                if effect not in EFFECTS:
+                    raise FitError(f"--free {name}: no effect {effect!r}; expected EFFECT.PARAM with an effect "
+                                   f"among {', '.join(EFFECTS)}")
+                own = [p for p in param_names if p.startswith(effect + ".")]
+                if own:
+                    raise FitError(f"--free {name}: {effect} has no parameter {key!r}; expected one of "
+                                   f"{', '.join(own)}")
                 raise FitError(f"--free {name}: the effect {effect!r} is not switched on; "
                                f"add --effect {effect}")
             raise FitError(f"--free {name}: not a parameter of this model; expected a rig parameter "

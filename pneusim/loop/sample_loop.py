@@ -20,7 +20,8 @@ work ends after the next deadline is an *overrun*.  A late sample runs at once
 skipped, so on a real plant a late sample is measured after its nominal time, by
 the ``lateness_s`` the recording holds.
 
-On Ctrl-C (:class:`KeyboardInterrupt`), on any exception raised by a
+On Ctrl-C (:class:`KeyboardInterrupt`), on SIGTERM (:class:`pneusim.shutdown.Terminated`, where the
+caller turned it into an exception with :func:`pneusim.shutdown.sigterm_raises`), on any exception raised by a
 component (a *fault*) or when the overruns exceed their budget, the loop stops,
 the plant's valve is sent to its null (``plant.safe_stop``), the writer is
 flushed and closed, and :class:`LoopResult` holds everything taken so far.
@@ -35,14 +36,16 @@ from typing import Callable, Mapping
 import numpy as np
 
 from ..errors import PneusimError
+from ..shutdown import Terminated
 from .pacing import FastPacing, Pacing
 from .status import StatusLine
 
-__all__ = ["run_loop", "LoopResult", "row_columns", "STOP_COMPLETED", "STOP_INTERRUPTED", "STOP_FAULT",
-           "STOP_OVERRUNS"]
+__all__ = ["run_loop", "LoopResult", "row_columns", "STOP_COMPLETED", "STOP_INTERRUPTED", "STOP_TERMINATED",
+           "STOP_FAULT", "STOP_OVERRUNS"]
 
 STOP_COMPLETED = "completed"
 STOP_INTERRUPTED = "interrupted (Ctrl-C)"
+STOP_TERMINATED = "terminated (SIGTERM)"
 STOP_FAULT = "fault"
 STOP_OVERRUNS = "overrun budget exceeded"
 
@@ -69,7 +72,8 @@ class LoopResult:
         Samples whose work ended after the next deadline; samples started more than half a
         sample late.
     stop_reason : str
-        ``completed``, ``interrupted (Ctrl-C)``, ``fault`` or ``overrun budget exceeded``.
+        ``completed``, ``interrupted (Ctrl-C)``, ``terminated (SIGTERM)``, ``fault`` or ``overrun budget
+        exceeded``.
     error : str or None
         The fault's message.
     """
@@ -149,8 +153,8 @@ def run_loop(plant, reference: np.ndarray, controller, estimators: Mapping[str, 
                 loop.sample(j - n_warm, pacing.wait(j))
         except _OverrunBudgetExceeded as exc:
             stop, error = STOP_OVERRUNS, str(exc)
-        except KeyboardInterrupt:
-            stop = STOP_INTERRUPTED
+        except KeyboardInterrupt as exc:
+            stop = STOP_TERMINATED if isinstance(exc, Terminated) else STOP_INTERRUPTED
         except Exception as exc:  # a component's fault: stop safely, keep what was taken, report it
             stop, exception = STOP_FAULT, exc
             error = str(exc) if isinstance(exc, PneusimError) else f"{type(exc).__name__}: {exc}"

@@ -12,7 +12,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 import re
 from dataclasses import dataclass
@@ -23,6 +22,7 @@ import numpy as np
 from ..errors import PneusimError
 from ..loop import LoopResult, StatusLine, make_pacing, row_columns, run_loop, timing_summary
 from ..metrics import error_stats
+from ..outputs import atomic_path, write_json_atomic
 from ..plant import SimulatedPlant
 from ..recording import read_recording
 from ..version import __version__
@@ -169,18 +169,30 @@ def _run_recorded(plant, comp: Components, m: dict, pacing, scope, rec_path: Pat
     runs; the writer and the plant are closed however it ends."""
     ts = comp.rig.sample_time_s
     budget = int(math.floor(float(m["overrun_budget"]) * comp.reference.shape[0])) if pacing.realtime else None
-    plant.reset(comp.x0_m, comp.u_init_V, t0_s=-comp.n_warm * ts)
-    # on disk every 0.1 s of samples: a hard kill loses at most that
-    writer = RecordingWriter(rec_path, meta, columns, flush_every=max(1, round(0.1 / ts)))
+    null_V = float(comp.rig.params["valve_null_V"])
+    result = writer = None
     try:
+        plant.reset(comp.x0_m, comp.u_init_V, t0_s=-comp.n_warm * ts)
+        # on disk every 0.1 s of samples: a hard kill loses at most that
+        writer = RecordingWriter(rec_path, meta, columns, flush_every=max(1, round(0.1 / ts)))
         with scope:
-            return run_loop(plant, comp.reference, comp.controller, comp.estimators, comp.to_output, comp.to_input,
-                            pacing=pacing, n_warm=comp.n_warm, writer=writer,
-                            status=StatusLine(interval_s=float(m["status_interval_s"])) if status else None,
-                            overrun_budget=budget, null_V=float(comp.rig.params["valve_null_V"]),
-                            stop_after=stop_after)
+            result = run_loop(plant, comp.reference, comp.controller, comp.estimators, comp.to_output,
+                              comp.to_input, pacing=pacing, n_warm=comp.n_warm, writer=writer,
+                              status=StatusLine(interval_s=float(m["status_interval_s"])) if status else None,
+                              overrun_budget=budget, null_V=null_V, stop_after=stop_after)
+        return result
     finally:
-        writer.close()
+        if result is None:
+            # stopped outside the loop (Ctrl-C or SIGTERM between the reset and the first sample, a writer
+            # that could not open its file): the loop's own stop did not run, so send the valve to null here
+            safe = getattr(plant, "safe_stop", None)
+            if safe is not None:
+                try:
+                    safe(null_V)
+                except Exception:  # noqa: BLE001 - the first problem is the one to report
+                    pass
+        if writer is not None:
+            writer.close()
         close = getattr(plant, "close", None)
         if close is not None:
             close()
@@ -188,10 +200,11 @@ def _run_recorded(plant, comp: Components, m: dict, pacing, scope, rec_path: Pat
 
 def _write_results(out: Path, res: LoopResult, summary: dict) -> None:
     """``coefficients.npz`` (every estimator's theta after every sample, the timing) and ``summary.json``."""
-    np.savez(out / "coefficients.npz", time_s=np.arange(res.n_samples) * res.sample_time_s,
-             lateness_s=res.lateness_s, latency_s=res.latency_s, compute_s=res.compute_s,
-             **{f"theta_{slug(name)}": th for name, th in res.thetas.items()})
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default) + "\n", encoding="utf-8")
+    with atomic_path(out / "coefficients.npz") as tmp:
+        np.savez(tmp, time_s=np.arange(res.n_samples) * res.sample_time_s,
+                 lateness_s=res.lateness_s, latency_s=res.latency_s, compute_s=res.compute_s,
+                 **{f"theta_{slug(name)}": th for name, th in res.thetas.items()})
+    write_json_atomic(out / "summary.json", summary, indent=2, default=_json_default, trailing_newline=True)
 
 
 def _json_default(x):

@@ -1,9 +1,9 @@
-"""A rig in another process over UDP: the protocol, the loop's plant and the rig server.
+"""A rig in another process over UDP: the protocol and the loop's plant (the server: :mod:`.rig_server`).
 
 One datagram per sample in each direction, the way a real-time target or a DAQ
 box on the network is used::
 
-    loop (UdpPlant)                         rig server (RigServer, ``pneusim serve-rig``)
+    loop (UdpPlant)                         rig server (rig_server.RigServer, ``pneusim serve-rig``)
     HELLO(position, command, t0)   ---->    reset the rig at time t0, valve at the command
                                    <----    READY seq 0: measurement of sample 0
     CMD seq k, u(k), t_sent        ---->    hold u(k) for one sample, measure sample k+1
@@ -27,7 +27,11 @@ Nothing is hidden:
   newer one (late, ignored);
 * **watchdog**: if the loop goes silent for longer than ``watchdog_s`` during a
   session, the server drives the valve to its null and holds it there until a
-  new session starts.
+  new session starts;
+* a HELLO the server refuses is answered by a READY whose flags say why
+  (:data:`FLAG_SAMPLE_TIME`, :data:`FLAG_BUSY`, :data:`FLAG_REFUSED`), and
+  :meth:`UdpPlant.reset` says so in one line.  What the server checks and
+  counts: :mod:`pneusim.mre.rig_server`.
 
 The server steps its simulated rig when a command arrives: it is paced by the
 loop (lock-step), so its simulated time stays exactly aligned with the sequence
@@ -40,20 +44,23 @@ import select
 import socket
 import struct
 import time
-from dataclasses import dataclass, field
 
 from ..errors import PneusimError
 from ..plant import Measurement
 
-__all__ = ["UdpPlant", "RigServer", "FORMAT", "HELLO", "READY", "CMD", "MEAS", "BYE", "pack", "unpack"]
+__all__ = ["UdpPlant", "FORMAT", "HELLO", "READY", "CMD", "MEAS", "BYE", "FLAG_SAMPLE_TIME", "FLAG_BUSY",
+           "FLAG_REFUSED", "pack", "unpack"]
 
 MAGIC = b"PNRS"
 VERSION = 1
 FORMAT = "<4sBBHQddddd"
 SIZE = struct.calcsize(FORMAT)
 HELLO, READY, CMD, MEAS, BYE = 1, 2, 3, 4, 5
-#: flag of a READY datagram: the loop's sample time (sent in HELLO's echo field) is not the rig's
+#: flags of a READY datagram that refuses a session: the loop's sample time (sent in HELLO's echo field) is
+#: not the rig's; the server is serving another loop; the HELLO's values are outside what the rig can take
 FLAG_SAMPLE_TIME = 1
+FLAG_BUSY = 2
+FLAG_REFUSED = 4
 
 
 _STRUCT = struct.Struct(FORMAT)      # compiled once: packing and unpacking run at every sample
@@ -173,6 +180,12 @@ class UdpPlant:
         if msg[1] & FLAG_SAMPLE_TIME:
             raise PneusimError(f"{self.where}: the rig server's sample time differs from the loop's "
                                f"{self.sample_time_s:g} s; serve the same rig")
+        if msg[1] & FLAG_BUSY:
+            raise PneusimError(f"{self.where}: the rig server is serving another loop; wait until its session "
+                               "ends, or start another server (pneusim serve-rig --port ANOTHER)")
+        if msg[1]:
+            raise PneusimError(f"{self.where}: the rig server refused the session: position {position_m!r} m, "
+                               f"command {command_V!r} V or start time {t0_s!r} s is outside what its rig can take")
         self._last = Measurement(self._t0, msg[5], msg[6], msg[7])
         self._pending = self._last
 
@@ -216,160 +229,3 @@ class UdpPlant:
         if self.sock is not None:
             self.sock.close()
             self.sock = None
-
-
-@dataclass
-class ServerStats:
-    """What a :class:`RigServer` counted (all per session except ``sessions`` and ``watchdog_trips``)."""
-
-    sessions: int = 0
-    commands: int = 0
-    lost_commands: int = 0
-    late_commands: int = 0
-    stray: int = 0
-    watchdog_trips: int = 0
-    byes: int = 0
-    events: list = field(default_factory=list)
-
-
-class RigServer:
-    """A simulated rig served over UDP (see the module docstring for the protocol).
-
-    Parameters
-    ----------
-    plant : SimulatedPlant
-        The rig; reset by each HELLO.
-    host, port : str, int
-        Where to listen (port 0: any free port, see :attr:`address`).
-    watchdog_s : float
-        Silence (no command) during a session after which the valve is driven to null.
-    null_V : float
-        The valve's null.
-    drop_replies : set of int
-        Sequence numbers of measurements not sent (fault injection for tests).
-    max_gap : int
-        Largest gap of lost commands the server fills by holding the last command; a larger
-        jump ends the session (valve to null).
-    """
-
-    def __init__(self, plant, host: str = "127.0.0.1", port: int = 0, watchdog_s: float = 0.1,
-                 null_V: float = 5.0, drop_replies=(), max_gap: int = 1000):
-        self.plant = plant
-        self.watchdog_s = float(watchdog_s)
-        self.null_V = float(null_V)
-        self.drop_replies = set(drop_replies)
-        self.max_gap = int(max_gap)
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        try:
-            self.sock.bind((host, int(port)))
-        except OSError as exc:
-            self.sock.close()
-            raise PneusimError(f"--port {port}: cannot listen on {host}:{port} ({exc.strerror or exc})") from None
-        self.address = self.sock.getsockname()
-        self.stats = ServerStats()
-        self.valve_V = self.null_V
-        self.active = False
-        self.peer = None
-        self._expected = 0
-        self._last_rx = 0.0
-        self._hello_stamp = None
-        self._ready = b""
-
-    def _send(self, kind, seq, t_echo, m: Measurement, flags=0):
-        if kind == MEAS and seq in self.drop_replies:
-            return
-        self.sock.sendto(pack(kind, seq, time.perf_counter(), t_echo, m.position_m, m.pressure_a_Pa,
-                              m.pressure_b_Pa, flags), self.peer)
-
-    def _trip(self, why: str):
-        self.valve_V = self.null_V
-        self.active = False
-        self.stats.events.append(why)
-
-    def handle(self, data: bytes, peer) -> None:
-        """Process one datagram."""
-        msg = unpack(data)
-        if msg is None:
-            self.stats.stray += 1
-            return
-        kind, _flags, seq, t_sent, echo, v0, v1, v2 = msg
-        now = time.perf_counter()
-        if kind == HELLO and self.active and peer == self.peer and t_sent == self._hello_stamp:
-            self.sock.sendto(self._ready, peer)     # a repeated HELLO: the same READY again, no second reset
-            return
-        if kind == HELLO:
-            self.peer = peer
-            if abs(echo - self.plant.sample_time_s) > 1e-9 * self.plant.sample_time_s:
-                self.stats.events.append(f"refused a session from {peer[0]}:{peer[1]}: sample time {echo:g} s")
-                self.sock.sendto(pack(READY, 0, time.perf_counter(), t_sent, float("nan"), flags=FLAG_SAMPLE_TIME),
-                                 peer)
-                return
-            self.plant.reset(v0, v1, v2)
-            self.valve_V = v1
-            self.active, self._expected, self._last_rx = True, 0, now
-            self.stats.sessions += 1
-            self.stats.events.append(f"session {self.stats.sessions} from {peer[0]}:{peer[1]}")
-            m = self.plant.measure()
-            self._hello_stamp = t_sent
-            self._ready = pack(READY, 0, time.perf_counter(), t_sent, m.position_m, m.pressure_a_Pa, m.pressure_b_Pa)
-            self.sock.sendto(self._ready, peer)
-            return
-        if not self.active or peer != self.peer:
-            self.stats.stray += 1
-            return
-        self._last_rx = now
-        if kind == BYE:
-            self.stats.byes += 1
-            self.valve_V = self.null_V if v0 != v0 else v0
-            self.active = False
-            self.stats.events.append("session ended by the loop: valve to null")
-            return
-        if kind != CMD:
-            self.stats.stray += 1
-            return
-        if seq < self._expected:
-            self.stats.late_commands += 1
-            return
-        if seq - self._expected > self.max_gap:
-            self._trip(f"sequence jumped from {self._expected} to {seq}: valve to null")
-            return
-        while self._expected < seq:             # commands that never came: the valve holds the last one
-            self.plant.step(self.valve_V)
-            self.plant.measure()                # the rig is sampled every period; nobody asked for this one
-            self.stats.lost_commands += 1
-            self._expected += 1
-        self.valve_V = v0
-        self.plant.step(v0)
-        self.stats.commands += 1
-        self._expected = seq + 1
-        self._send(MEAS, seq + 1, t_sent, self.plant.measure())
-
-    def check_watchdog(self) -> bool:
-        """Drive the valve to null if the session has been silent too long; True when it tripped."""
-        if self.active and time.perf_counter() - self._last_rx > self.watchdog_s:
-            self.stats.watchdog_trips += 1
-            self._trip(f"watchdog: no command for {self.watchdog_s:g} s: valve to null ({self.null_V:g} V)")
-            return True
-        return False
-
-    def serve(self, stop=None, max_sessions: int | None = None, idle_timeout_s: float | None = None) -> ServerStats:
-        """Serve until ``stop`` (a :class:`threading.Event`) is set, ``max_sessions`` sessions have ended,
-        or nothing arrived for ``idle_timeout_s`` outside a session."""
-        poll = min(self.watchdog_s / 4, 0.05)
-        idle_since = time.perf_counter()
-        while stop is None or not stop.is_set():
-            ready, _, _ = select.select([self.sock], [], [], poll)
-            if ready:
-                data, peer = self.sock.recvfrom(256)
-                self.handle(data, peer)
-                idle_since = time.perf_counter()
-            self.check_watchdog()
-            ended = self.stats.sessions - (1 if self.active else 0)
-            if max_sessions is not None and ended >= max_sessions and not self.active:
-                break
-            if idle_timeout_s is not None and not self.active and time.perf_counter() - idle_since > idle_timeout_s:
-                break
-        return self.stats
-
-    def close(self) -> None:
-        self.sock.close()

@@ -33,15 +33,15 @@ from __future__ import annotations
 
 import copy
 import csv
-import json
+import io
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputFileError, PneusimError
 from ..model import EFFECTS, make_effect
+from ..outputs import savefig_atomic, write_json_atomic, write_text_atomic
 from ..rig import load_rig
-from ..runid import run_id
 from ..simulate import rig_effects
 from .figures import pyplot
 from .schema import set_dotted, validate_scenario
@@ -69,7 +69,8 @@ def _effect_text(name: str, params: dict) -> str:
 def prepare_ablation(sweep: dict, table: dict, path) -> dict:
     """Check the ``[ablation]`` table and add its cases to ``sweep`` as points; returns the sweep.
 
-    ``sweep['ablation']`` keeps the parsed table with ``labels``: ``{run_id: case}`` for the report.
+    ``sweep['ablation']`` keeps the parsed table with ``case_points``: ``[(case, point)]``, which the sweep
+    turns into ``labels``: ``{run_id: case}`` for the report once the runs' context is known.
     """
     path = str(path)
     metric, phys_levels, phys_dur = _check_options(table, path)
@@ -101,10 +102,9 @@ def prepare_ablation(sweep: dict, table: dict, path) -> dict:
             set_dotted(trial, key, value, where=path)
         validate_scenario(trial, where=f"{path} ({case['row']}, {case['part']})")
     sweep = dict(sweep, scenario=spec, base=base, points=list(sweep.get("points", [])) + [p for _, p in cases.items])
-    labels = {run_id(point, seed): case for case, point in cases.items for seed in sweep["seeds"]}
     scored_names = [idents[i]["name"] for i in scored if idents[i].get("enabled", True)]
     sweep["ablation"] = {"metric": metric, "physical_levels": phys_levels, "physical_duration_s": phys_dur,
-                         "labels": labels, "rows": [c for c, _ in cases.items if c["part"] == "black-box"],
+                         "case_points": list(cases.items), "rows": [c for c, _ in cases.items if c["part"] == "black-box"],
                          "identifiers": scored_names, "kinds": {i["name"]: i["kind"] for i in idents},
                          "published": {i["name"]: i.get("published", {}) for i in idents},
                          "duration_s": base.get("experiment.duration_s", spec["experiment"]["duration_s"]),
@@ -264,16 +264,17 @@ def write_ablation_report(table: list[dict], sweep: dict, out_dir) -> dict:
     rows, columns, values = ablation_matrix(table, ab)
     columns = [c for c in columns if any((r, c) in values for r in rows)]
     info = {c["row"]: c for c in ab["rows"]}
-    with open(out / "ablation.csv", "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(["row", "group", "effect", "level", "effects", "identifier", "metric", "value", "source"])
-        for r in rows:
-            c = info.get(r, {"group": "reference", "effect": "", "level": "", "effects": [],
-                             "source": "the paper's published table"})
-            for col in columns:
-                if (r, col) in values:
-                    w.writerow([r, c["group"], c["effect"], c["level"], ";".join(c.get("effects", [])), col,
-                                _metric_of(ab, col), repr(values[(r, col)]), c["source"]])
+    fh = io.StringIO(newline="")      # the CSV text, written at once (atomically)
+    w = csv.writer(fh)
+    w.writerow(["row", "group", "effect", "level", "effects", "identifier", "metric", "value", "source"])
+    for r in rows:
+        c = info.get(r, {"group": "reference", "effect": "", "level": "", "effects": [],
+                         "source": "the paper's published table"})
+        for col in columns:
+            if (r, col) in values:
+                w.writerow([r, c["group"], c["effect"], c["level"], ";".join(c.get("effects", [])), col,
+                            _metric_of(ab, col), repr(values[(r, col)]), c["source"]])
+    write_text_atomic(out / "ablation.csv", fh.getvalue())
     ideal = {c: values.get(("ideal rig", c)) for c in columns}
     lines = [f"# Effect ablation: {ab['scenario_name']}", ""]
     sq = ab["metric"] == "square_error"
@@ -304,12 +305,12 @@ def write_ablation_report(table: list[dict], sweep: dict, out_dir) -> dict:
     lines += ["", "![ablation](ablation.png)", "",
               "Files: `ablation.csv` (long table with sources), `sweep.csv` (every identifier and reading), "
               "`runs/` (each run's result)."]
-    (out / "ablation.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_text_atomic(out / "ablation.md", "\n".join(lines) + "\n")
     _figure(out / "ablation.png", rows, columns, values, ab)
-    (out / "ablation.json").write_text(json.dumps(
-        {"metric": ab["metric"], "rows": rows, "columns": columns,
-         "values": [{"row": r, "identifier": c, "value": v} for (r, c), v in values.items()],
-         "findings": findings}, indent=1), encoding="utf-8")
+    write_json_atomic(out / "ablation.json",
+                      {"metric": ab["metric"], "rows": rows, "columns": columns,
+                       "values": [{"row": r, "identifier": c, "value": v} for (r, c), v in values.items()],
+                       "findings": findings}, indent=1)
     return {"rows": rows, "columns": columns, "values": values, "findings": findings}
 
 
@@ -384,5 +385,5 @@ def _figure(path, rows, columns, values, ab):
         fig.colorbar(im, ax=ax, fraction=0.04)
     fig.suptitle(f"Effect ablation of {ab['scenario_name']}: one effect at a time", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    savefig_atomic(fig, path, dpi=110)
     plt.close(fig)

@@ -18,10 +18,17 @@ A sweep file (schema in ``scenarios/README.md``)::
     "rig.overrides.moving_mass_kg" = 3.0
 
 Every run is independent and seeded; its result is stored as
-``OUT/runs/RUN_ID.json`` (``RUN_ID`` hashes the parameters and the seed), so a
-restarted sweep skips the runs already done.  A run that raises is recorded
-with its error and the sweep goes on.  The table (``OUT/sweep.csv`` and
-``OUT/sweep.parquet``) has one row per run and identifier reading.
+``OUT/runs/RUN_ID.json``, written atomically.  ``RUN_ID`` hashes everything
+that determines the run (:mod:`pneusim.runid`): the varied parameters, the
+seed, the scenario, ``[base]``, the sweep's options and the rig files they
+name; so a restarted sweep skips the runs already done, and a sweep whose file,
+scenario or rig changed runs its runs again instead of reusing old results.  A
+stored run that cannot be read (a crash while writing, a hand edit) is run
+again, with a note.  A seed, a grid value or a point listed twice is refused (it
+would count one run twice); random draws that repeat a run are one run.  A run
+that raises is recorded with its error and the sweep goes on.  The table
+(``OUT/sweep.csv`` and ``OUT/sweep.parquet``) has one row per run and
+identifier reading.
 """
 
 from __future__ import annotations
@@ -42,10 +49,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputFileError, PneusimError
+from ..outputs import atomic_path, write_json_atomic
 from ..parallel import executor_map, local_pool
 from ..plant import SimulatedPlant
 from ..rig import load_rig
-from ..runid import run_id
+from ..runid import run_context, run_id
 from ..simulate import merged_effects
 from ..tomlfile import read_toml
 from .ablation import prepare_ablation, write_ablation_report
@@ -55,7 +63,7 @@ from .schema import load_scenario, set_dotted, validate_scenario
 from .sweep_plots import summary_plots
 
 __all__ = ["load_sweep", "expand_runs", "run_one", "run_sweep", "build_table", "write_table", "parse_set_items",
-           "TABLE_METRICS"]
+           "sweep_context", "sweep_run_id", "read_stored_run", "TABLE_METRICS"]
 
 TABLE_METRICS = ("fit_percent", "mse", "rmse", "error_std", "square_error")
 
@@ -96,10 +104,12 @@ def load_sweep(path) -> dict:
     seeds = head.get("seeds", [spec["experiment"]["seed"]])
     if not isinstance(seeds, list) or not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
         raise InputFileError("expected a non-empty list of integers", path=path, field="sweep.seeds")
+    _refuse_repeats(seeds, path, "sweep.seeds", "seed", "each seed gives one run per point")
     grid = data.get("grid", {})
     for key, values in grid.items():
         if not isinstance(values, list) or not values:
             raise InputFileError("expected a non-empty list of values", path=path, field=f"grid.{key}")
+        _refuse_repeats(values, path, f"grid.{key}", "value", "each value gives one run per seed")
     rnd = dict(data.get("random", {}))
     n_rand = rnd.pop("n", 0 if not rnd else None)
     rnd_seed = rnd.pop("seed", 0)
@@ -131,6 +141,8 @@ def load_sweep(path) -> dict:
     sweep = {"name": head.get("name", path.stem), "scenario": spec, "scenario_path": str(scen_path),
              "base": base, "grid": grid, "random": rnd, "n_random": n_rand, "random_seed": rnd_seed,
              "seeds": seeds, "variants": bool(head.get("variants", False)), "path": str(path), "points": points}
+    sweep["context"] = sweep_context(sweep)
+    _refuse_repeated_points(sweep, path)
     # validate the varied keys with the first run, naming the sweep file; an explicit point with a key the
     # scenario does not have is refused too, while a bad value only makes its run fail (recorded in the table)
     runs = expand_runs(sweep)
@@ -144,7 +156,43 @@ def load_sweep(path) -> dict:
                 raise
     if "ablation" in data:      # an effect ablation: its cases become points (pneusim.scenario.ablation)
         sweep = prepare_ablation(sweep, data["ablation"], path)
+        sweep["context"] = sweep_context(sweep)     # the ablation adds identifiers to the scenario
+        sweep["ablation"]["labels"] = {sweep_run_id(sweep, point, seed): case
+                                       for case, point in sweep["ablation"].pop("case_points")
+                                       for seed in sweep["seeds"]}
+    sweep["n_repeated"] = len(_all_runs(sweep)) - len(expand_runs(sweep))
     return sweep
+
+
+def sweep_context(sweep: dict) -> str:
+    """What every run of ``sweep`` shares, as a digest (:func:`pneusim.runid.run_context`): the scenario, the
+    ``[base]`` overrides, the variants option and the rig files they name."""
+    return run_context(sweep["scenario"], sweep["base"], {"variants": sweep["variants"]})
+
+
+def sweep_run_id(sweep: dict, params: dict, seed: int) -> str:
+    """The id of the run ``(params, seed)`` of ``sweep``: it changes with anything that changes the run."""
+    return run_id(params, seed, sweep["context"])
+
+
+def _refuse_repeats(values: list, path, field: str, what: str, why: str) -> None:
+    """One line for the first value of ``values`` listed twice (``1`` and ``1.0`` are the same value)."""
+    for i, v in enumerate(values):
+        if any(v == w and type(v) is not bool for w in values[:i]):
+            raise InputFileError(f"{what} {v!r} is listed twice; {why}, and a repeated one would count the same "
+                                 "run twice", path=path, field=field)
+
+
+def _refuse_repeated_points(sweep: dict, path) -> None:
+    """An explicit ``[[points]]`` entry equal to a grid point or to an earlier point is refused."""
+    keys = list(sweep["grid"])
+    seen = [dict(zip(keys, combo)) for combo in itertools.product(*(sweep["grid"][k] for k in keys))] \
+        if keys and not sweep["random"] else []
+    for i, point in enumerate(sweep["points"]):
+        if point in seen:
+            raise InputFileError(f"{point} repeats a grid point or an earlier point (listed twice); it would "
+                                 "count the same run twice", path=path, field=f"points[{i}]")
+        seen.append(point)
 
 
 def _draw(dist, rng):
@@ -156,7 +204,18 @@ def _draw(dist, rng):
 
 
 def expand_runs(sweep: dict) -> list[tuple[dict, int]]:
-    """``[(params, seed)]``: (grid points x random draws, then the explicit points) x seeds, in a fixed order."""
+    """``[(params, seed)]``: (grid points x random draws, then the explicit points) x seeds, in a fixed order;
+    a run that repeats an earlier one (random draws of the same choices) is listed once."""
+    runs, seen = [], set()
+    for params, seed in _all_runs(sweep):
+        key = sweep_run_id(sweep, params, seed) if "context" in sweep else run_id(params, seed)
+        if key not in seen:
+            seen.add(key)
+            runs.append((params, seed))
+    return runs
+
+
+def _all_runs(sweep: dict) -> list[tuple[dict, int]]:
     keys = list(sweep["grid"])
     points = [dict(zip(keys, combo)) for combo in itertools.product(*(sweep["grid"][k] for k in keys))] or [{}]
     if sweep["random"]:
@@ -176,10 +235,14 @@ def _apply(spec, base, params, seed, where="sweep"):
     return validate_scenario(spec, where=f"{where} (run {params}, seed {seed})")
 
 
-def run_one(spec: dict, base: dict, params: dict, seed: int, variants: bool = False) -> dict:
-    """One sweep run (picklable, for any executor): never raises; errors are recorded in the result."""
+def run_one(spec: dict, base: dict, params: dict, seed: int, variants: bool = False, rid: str | None = None) -> dict:
+    """One sweep run (picklable, for any executor): never raises; errors are recorded in the result.
+
+    ``rid`` is the run's id (:func:`sweep_run_id`; default: computed from these arguments)."""
     started, cpu_started = time.perf_counter(), time.process_time()
-    out = {"run_id": run_id(params, seed), "params": params, "seed": seed, "rows": [], "error": None,
+    if rid is None:
+        rid = run_id(params, seed, run_context(spec, base, {"variants": variants}))
+    out = {"run_id": rid, "params": params, "seed": seed, "rows": [], "error": None,
            "worker_pid": os.getpid()}
     with warnings.catch_warnings(record=True) as caught:      # kept with the run, not printed by every worker
         warnings.simplefilter("always")
@@ -198,8 +261,8 @@ def run_one(spec: dict, base: dict, params: dict, seed: int, variants: bool = Fa
 
 def _lost_run(task, exc) -> dict:
     """The result of a run whose worker did not return (it died, or the executor broke)."""
-    _, _, params, seed, _ = task
-    return {"run_id": run_id(params, seed), "params": params, "seed": seed, "rows": [], "worker_pid": None,
+    _, _, params, seed, _, rid = task
+    return {"run_id": rid, "params": params, "seed": seed, "rows": [], "worker_pid": None,
             "error": f"the worker did not return: {type(exc).__name__}: {exc}", "run_time_s": None}
 
 
@@ -207,7 +270,7 @@ def _warm_up(task) -> None:
     """Before local workers fork: build the model of the scenario's effects with its compiled kernels, here,
     once.  The workers fork at their first task and share it (copy-on-write), as they share every module
     imported here, instead of each building and generating it again."""
-    spec, base, params, seed, _ = task
+    spec, base, params, seed, _, _ = task
     try:
         spec = _apply(spec, base, params, seed)
         rig = load_rig(spec["rig"]["name"])
@@ -233,19 +296,25 @@ def run_sweep(sweep: dict, out_dir, workers: int | None = None, dask: str | None
     Returns
     -------
     dict
-        ``{"n_runs", "n_done_before", "n_failed", "wall_time_s", "runs_per_s", "table": [...rows]}``.
+        ``{"n_runs", "n_done_before", "n_failed", "wall_time_s", "runs_per_s", "table": [...rows],
+        "notes": [...]}``; ``notes`` name the stored runs that could not be read and were run again.
     """
     out = Path(out_dir)
     (out / "runs").mkdir(parents=True, exist_ok=True)
+    if "context" not in sweep:
+        sweep = dict(sweep, context=sweep_context(sweep))
     runs = expand_runs(sweep)
-    todo = []
-    for params, seed in runs:
-        f = out / "runs" / f"{run_id(params, seed)}.json"
+    ids = [sweep_run_id(sweep, params, seed) for params, seed in runs]
+    todo, notes = [], []
+    for (params, seed), rid in zip(runs, ids):
+        f = out / "runs" / f"{rid}.json"
         if f.exists():
-            done = json.loads(f.read_text())
-            if not (retry_failed and done.get("error")):
+            done, problem = read_stored_run(f, rid)
+            if problem:
+                notes.append(f"{f}: {problem}; the run is run again")
+            elif not (retry_failed and done.get("error")):
                 continue
-        todo.append((sweep["scenario"], sweep["base"], params, seed, sweep["variants"]))
+        todo.append((sweep["scenario"], sweep["base"], params, seed, sweep["variants"], rid))
     if workers is None:
         workers = os.cpu_count() or 1
     local = not dask and workers > 0
@@ -255,9 +324,9 @@ def run_sweep(sweep: dict, out_dir, workers: int | None = None, dask: str | None
         if local and todo and multiprocessing.get_start_method() == "fork":
             _warm_up(todo[0])
         for res in executor_map(run_one, todo, _lost_run, workers, dask, progress, desc="sweep", pool=pool):
-            (out / "runs" / f"{res['run_id']}.json").write_text(json.dumps(res, allow_nan=False, default=str))
+            write_json_atomic(out / "runs" / f"{res['run_id']}.json", res, allow_nan=False, default=str)
         wall = time.perf_counter() - started
-        results = [json.loads((out / "runs" / f"{run_id(p, s)}.json").read_text()) for p, s in runs]
+        results = [_stored_or_fail(out / "runs" / f"{rid}.json", rid) for rid in ids]
         table = build_table(results)
         write_table(table, out)
         varied = list(dict.fromkeys(list(sweep["grid"]) + list(sweep["random"])
@@ -270,7 +339,35 @@ def run_sweep(sweep: dict, out_dir, workers: int | None = None, dask: str | None
     if sweep.get("ablation"):
         write_ablation_report(table, sweep, out)
     return {"n_runs": len(runs), "n_done_before": len(runs) - len(todo), "n_failed": sum(bool(r["error"]) for r in results),
-            "wall_time_s": wall, "runs_per_s": len(todo) / wall if todo and wall > 0 else float("nan"), "table": table}
+            "wall_time_s": wall, "runs_per_s": len(todo) / wall if todo and wall > 0 else float("nan"), "table": table,
+            "notes": notes}
+
+
+#: what a stored run holds (the rest, e.g. timings and warnings, is informative)
+STORED_KEYS = {"run_id": str, "params": dict, "seed": int, "rows": list, "error": (str, type(None))}
+
+
+def read_stored_run(path: Path, rid: str) -> tuple[dict | None, str | None]:
+    """``(result, None)`` for a stored run that can be used, else ``(None, why not)``."""
+    try:
+        done = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        return None, f"not valid JSON ({exc})"
+    if not isinstance(done, dict):
+        return None, f"expected a JSON object, got {type(done).__name__}"
+    for key, kind in STORED_KEYS.items():
+        if key not in done or not isinstance(done[key], kind) or (kind is int and isinstance(done[key], bool)):
+            return None, f"lacks a valid {key!r} (expected {getattr(kind, '__name__', 'a string or null')})"
+    if done["run_id"] != rid:
+        return None, f"holds run {done['run_id']!r}, not {rid!r}"
+    return done, None
+
+
+def _stored_or_fail(path: Path, rid: str) -> dict:
+    done, problem = read_stored_run(path, rid)
+    if problem:
+        raise PneusimError(f"{path}: {problem} (written by this sweep a moment ago: another process writes there?)")
+    return done
 
 
 def _cell(v):
@@ -312,5 +409,7 @@ def write_table(table: list[dict], out_dir) -> None:
             data[c] = [None if v is None else float(v) for v in values]
     tab = pa.table(data) if table else pa.table({"run_id": pa.array([], pa.string())})
     out = Path(out_dir)
-    pq.write_table(tab, out / "sweep.parquet")
-    pacsv.write_csv(tab, out / "sweep.csv")
+    with atomic_path(out / "sweep.parquet") as tmp:
+        pq.write_table(tab, tmp)
+    with atomic_path(out / "sweep.csv") as tmp:
+        pacsv.write_csv(tab, tmp)

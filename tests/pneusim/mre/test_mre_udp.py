@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from pneusim.loop import run_loop
-from pneusim.mre.udp import CMD, RigServer, UdpPlant, pack
+from pneusim.mre.rig_server import RigServer
+from pneusim.mre.udp import CMD, UdpPlant, pack
 from pneusim.plant import Measurement, SimulatedPlant
 from pneusim.rig import load_rig
 from pneusim.controller import ProportionalController
