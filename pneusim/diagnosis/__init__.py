@@ -3,15 +3,18 @@ model differ, name the physics left out from the vocabulary, model it, and show 
 data the fit never saw.
 
 ``diagnose(recording)`` returns a :class:`DiagnosisResult` whose ``to_dict()`` is the contract's JSON;
-:func:`write_report` writes its report folder; :func:`diagnose_many` runs several recordings on the
+it runs :class:`Diagnosis`, an estimator whose stages (:class:`DiagnosisStages`) can be swapped one by one;
+the thresholds that decide what is screened, fitted and kept are in :mod:`.rules`.
+:func:`write_report` writes a result's report folder; :func:`diagnose_many` runs several recordings on the
 sweep executor (local processes or Dask) and writes one summary table.
 """
 
 from .diagnose import diagnose
+from .estimator import Diagnosis, DiagnosisStages
 from .result import CandidateTrial, DiagnosisResult, Finding, MismatchWindow
 
-__all__ = ["diagnose", "DiagnosisResult", "Finding", "MismatchWindow", "CandidateTrial", "write_report",
-           "diagnose_many"]
+__all__ = ["diagnose", "Diagnosis", "DiagnosisStages", "DiagnosisResult", "Finding", "MismatchWindow",
+           "CandidateTrial", "write_report", "diagnose_many"]
 
 
 def write_report(result, folder):

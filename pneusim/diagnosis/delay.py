@@ -1,17 +1,19 @@
-"""The transport delay: a parameter without a gradient, estimated by scans.
+"""The transport delay: the one effect whose parameter has no gradient, estimated by scans.
 
 A dead time moves the instants at which the valve sees each command; the model's response to it is a
-step function of the delay between samples and has no useful derivative, so the fit keeps it fixed and
-the diagnosis scans it twice:
+step function of the delay between samples and has no useful derivative, so the fit keeps it fixed
+(the effect's ``searched``) and the diagnosis scans it twice.  Everything the diagnosis does for a delay
+alone is here:
 
-1. **screening** -- a few fixed delays around the lag of the command-residual cross-correlation,
-   each screened by trust-region steps from the nominal optimum; :func:`refine_from_screening` puts a
-   parabola through the best gain and its neighbours;
-2. **refits** -- once a delay is kept, :func:`scan_with_refits` refits the whole model at delays
-   around it (each warm-started from the kept fit) and walks downhill in the estimation residual
-   sum of squares, then a parabola in ``log(delay)`` through the best three.  Screening from the
-   nominal fit's states favours the smaller delays (the states it starts from belong to no delay):
-   on ``practice2_28`` (paper 1, a 12.5 ms delay) it kept 8 ms, 77.2 % validation.
+1. **screening** -- a few fixed delays around the lag of the command-residual cross-correlation
+   (:func:`screened_delays`), each screened by trust-region steps from the nominal optimum;
+   :class:`ScreenedDelays` puts a parabola through the best gain and its neighbours
+   (:func:`refine_from_screening`);
+2. **refits** -- once a delay is kept and leads the findings, or comes close (:func:`delay_could_lead`),
+   :func:`scan_with_refits` refits the whole model at delays around it (each warm-started from the kept
+   fit) and walks downhill in the estimation residual sum of squares, then a parabola in ``log(delay)``
+   through the best three, then halves the bracket.  Screening from the nominal fit's states favours the
+   smaller delays (the states it starts from belong to no delay), so the kept delay is not the end.
 
 Only the estimation part decides the delay; the validation part stays unseen.
 """
@@ -24,19 +26,57 @@ import time
 import numpy as np
 
 from ..model import make_effect
-from . import candidates as cand
+from .candidates import Candidate
+from .refits import effect_parameters, estimation_cost
+from .rules import (DELAY_GRID_PER_SAMPLE, DELAY_LAG_CORRELATION, DELAY_LAG_FACTORS, DELAY_SCAN_ERROR_RATIO,
+                    MIN_DELAY_SAMPLES, SCAN_FACTOR, SCAN_REFITS, is_solver_failure)
 
-__all__ = ["refine_from_screening", "scan_with_refits", "SCAN_FACTOR", "SCAN_REFITS"]
+__all__ = ["DELAY", "screened_delays", "ScreenedDelays", "refine_from_screening", "delay_could_lead",
+           "scan_kept_delay", "scan_with_refits", "SCAN_FACTOR", "SCAN_REFITS"]
 
-#: neighbouring delays of the refit scan differ by this factor
-SCAN_FACTOR = 1.5
-#: at most this many refits in the scan
-SCAN_REFITS = 8
+#: the effect estimated by scans (its delay is ``searched``: no gradient)
+DELAY = "transport_delay"
+
+
+def screened_delays(signatures: dict, sample_time_s: float) -> list | None:
+    """The transport delays to screen: around the lag of the command-residual cross-correlation
+    (:data:`~.rules.DELAY_LAG_FACTORS` times it, on the sample grid) where it points to one (a lag of at least
+    a sample, a peak correlation above :data:`~.rules.DELAY_LAG_CORRELATION`), else None (the effect's own
+    default scan)."""
+    dt = sample_time_s
+    lag = signatures.get("lag_s", float("nan"))
+    if math.isfinite(lag) and lag >= dt and abs(signatures.get("lag_r", 0.0)) > DELAY_LAG_CORRELATION:
+        return sorted({max(dt, round(f * lag / dt) * dt) for f in DELAY_LAG_FACTORS})
+    return None
+
+
+class ScreenedDelays:
+    """The screening gains of the screened delays: ``add`` each candidate's gain (other effects are
+    ignored), then ``refine`` the delay's variant to the best delay between them."""
+
+    def __init__(self):
+        self.scan = []
+
+    def add(self, candidate: Candidate, gain: float) -> None:
+        if candidate.name == DELAY:
+            self.scan.append((candidate.effect.values["delay_s"], gain))
+
+    def refine(self, variants: dict, sample_time_s: float) -> None:
+        """Replace the delay's entry of ``variants`` (``{effect: (score, candidate, screening)}``) by the delay
+        of :func:`refine_from_screening`, at the best variant's score."""
+        if not (self.scan and DELAY in variants):
+            return
+        d_best = refine_from_screening(self.scan, sample_time_s)
+        score, c, s = variants[DELAY]
+        c = Candidate(DELAY, f"transport delay {d_best * 1e3:.3g} ms", make_effect(DELAY, delay_s=d_best), [])
+        variants[DELAY] = (score, c, dict(s, parameters={"delay_s": d_best}))
 
 
 def _on_grid(delay_s: float, sample_time_s: float) -> float:
-    """A delay rounded to a tenth of a sample, at least half a sample."""
-    return float(max(0.5 * sample_time_s, round(delay_s / sample_time_s * 10) / 10 * sample_time_s))
+    """A delay rounded to the grid (:data:`~.rules.DELAY_GRID_PER_SAMPLE`), at least
+    :data:`~.rules.MIN_DELAY_SAMPLES`."""
+    return float(max(MIN_DELAY_SAMPLES * sample_time_s,
+                     round(delay_s / sample_time_s * DELAY_GRID_PER_SAMPLE) / DELAY_GRID_PER_SAMPLE * sample_time_s))
 
 
 def _parabola_in_log(delays, values, best: int) -> float | None:
@@ -68,77 +108,127 @@ def refine_from_screening(scan, sample_time_s: float) -> float:
     return _on_grid(d[k] if best is None else best, sample_time_s)
 
 
-def scan_with_refits(recording, rig, kept_fit, noise: dict, say=lambda message: None):
+def delay_could_lead(kept: list, refits: dict) -> bool:
+    """Whether a kept transport delay is worth its refit scan: it leads the kept findings (``kept``, best
+    validation fit first), or its validation error is at most :data:`~.rules.DELAY_SCAN_ERROR_RATIO` times
+    the leader's.
+
+    The scan moves the delay along its valley, so a delay short of the leader may still overtake it; but a
+    look-alike that leaves several times the leader's error is not what the recording lacks, and its scan
+    costs up to :data:`~.rules.SCAN_REFITS` whole refits (``docs/decisions/0033``)."""
+    if DELAY not in kept:
+        return False
+    error = lambda k: 100.0 - refits[k][0].fit_percent  # noqa: E731
+    return kept[0] == DELAY or error(DELAY) <= DELAY_SCAN_ERROR_RATIO * error(kept[0])
+
+
+def scan_kept_delay(run) -> None:
+    """Where :func:`delay_could_lead`, estimate the kept transport delay by :func:`scan_with_refits` (the kept
+    one came from the screening's scan); the best delay replaces it when it still passes the keep test.
+    ``run.refits`` and ``run.trials`` are updated in place."""
+    if not delay_could_lead(run.kept_by_fit(), run.refits):
+        return
+    basis = run.baseline
+    fit_d, c_d = run.refits[DELAY]
+    best, scan = scan_with_refits(run, fit_d)
+    trial = run.trials[DELAY]
+    text = ", ".join(f"{d * 1e3:.4g} ms {c:.0f}" for d, c, _ in scan)
+    trial.seconds = (trial.seconds or 0.0) + sum(t for _, _, t in scan)
+    trial.status += f"; delay scan with refits (estimation residual by delay: {text}): "
+    if best is fit_d:
+        trial.status += "the kept delay is best"
+        return
+    cost_b, _ = estimation_cost(best, run.noise)
+    ok, threshold, reason = run.stages.keep_test(basis.cost0, cost_b, basis.n_residuals, c_d.n_added, basis.fit0,
+                                                 best.fit_percent, basis.floor)
+    if not ok:
+        trial.status += f"the best delay fails the test ({reason}); the kept delay stays"
+        return
+    trial.status += reason
+    trial.fit_percent, trial.improvement_points = best.fit_percent, best.fit_percent - basis.fit0
+    trial.estimation_cost_drop, trial.threshold = basis.cost0 - cost_b, threshold
+    trial.parameters, _ = effect_parameters(best, DELAY)
+    run.refits[DELAY] = (best, c_d)
+
+
+class _Scan:
+    """The refits of one delay scan, by delay on the grid: ``fits[delay] = (cost, fit or None, seconds)``."""
+
+    def __init__(self, run, kept_fit):
+        self.run, self.kept_fit = run, kept_fit
+        self.dt = run.recording.sample_time_s
+        self.d0 = next(e.values["delay_s"] for e in kept_fit.effects_ if e.name == DELAY)
+        self.others = [e for e in kept_fit.effects_ if e.name != DELAY]
+        self.fits = {self.d0: (estimation_cost(kept_fit, run.noise)[0], kept_fit, 0.0)}
+        self.budget = SCAN_REFITS
+
+    def at(self, delay_s: float) -> float:
+        """Refit at ``delay_s`` (on the grid) unless done or out of budget; returns the delay on the grid."""
+        delay_s = _on_grid(delay_s, self.dt)
+        if delay_s in self.fits or self.budget <= 0:
+            return delay_s
+        self.budget -= 1
+        started = time.perf_counter()
+        run = self.run
+        run.say(f"transport delay scan: refit at {delay_s * 1e3:.4g} ms")
+        try:
+            fit = run.stages.refit(run.recording, run.rig, self.others + [make_effect(DELAY, delay_s=delay_s)],
+                                   self.kept_fit)
+            cost = estimation_cost(fit, run.noise)[0]
+        except Exception as exc:  # noqa: BLE001 - a delay that cannot be fitted is left out
+            if not is_solver_failure(exc):
+                raise
+            fit, cost = None, math.inf
+        self.fits[delay_s] = (cost, fit, time.perf_counter() - started)
+        return delay_s
+
+    def costs(self):
+        """``(delays, costs)`` of the fits that ran, by delay, and the index of the lowest cost."""
+        ds = sorted(d for d in self.fits if self.fits[d][1] is not None)
+        cs = [self.fits[d][0] for d in ds]
+        return ds, cs, int(np.argmin(cs))
+
+
+def scan_with_refits(run, kept_fit):
     """Refit at delays around ``kept_fit``'s (a fit with a transport delay) and return
     ``(best_fit, scan)``: the fit of lowest estimation residual sum of squares (``kept_fit`` itself
     when no other is lower) and the ``(delay_s, cost, seconds)`` of every fit tried, by delay.
 
-    From the kept delay ``d`` the scan refits at ``d * 1.5`` and ``d / 1.5``, walks on by the same
-    factor while the residual falls, then refits at the minimum of the parabola in ``log(delay)``
-    through the best delay and its neighbours, then halves the wider side of the bracket until the
-    neighbours are a grid step (a tenth of a sample) from the best; at most :data:`SCAN_REFITS` refits.  A refit that fails
-    is left out of the scan."""
-    dt = recording.sample_time_s
-    d0 = next(e.values["delay_s"] for e in kept_fit.effects_ if e.name == "transport_delay")
-    others = [e for e in kept_fit.effects_ if e.name != "transport_delay"]
-    fits = {d0: (cand.estimation_cost(kept_fit, noise)[0], kept_fit, 0.0)}
-    budget = [SCAN_REFITS]
-
-    def at(delay_s):
-        delay_s = _on_grid(delay_s, dt)
-        if delay_s in fits or budget[0] <= 0:
-            return delay_s
-        budget[0] -= 1
-        started = time.perf_counter()
-        say(f"transport delay scan: refit at {delay_s * 1e3:.4g} ms")
-        try:
-            fit = cand.refit(recording, rig, others + [make_effect("transport_delay", delay_s=delay_s)], kept_fit)
-            cost = cand.estimation_cost(fit, noise)[0]
-        except Exception as exc:  # noqa: BLE001 - a delay that cannot be fitted is left out
-            if not cand.is_solver_failure(exc):
-                raise
-            fit, cost = None, math.inf
-        fits[delay_s] = (cost, fit, time.perf_counter() - started)
-        return delay_s
-
-    def costs():
-        ds = sorted(d for d in fits if fits[d][1] is not None)
-        return ds, [fits[d][0] for d in ds]
-
-    at(d0 * SCAN_FACTOR)
-    at(d0 / SCAN_FACTOR)
-    while budget[0] > 1:
-        ds, cs = costs()
-        k = int(np.argmin(cs))
+    From the kept delay ``d`` the scan refits at ``d * 1.5`` and ``d / 1.5`` (:data:`~.rules.SCAN_FACTOR`),
+    walks on by the same factor while the residual falls, then refits at the minimum of the parabola in
+    ``log(delay)`` through the best delay and its neighbours, then halves the wider side of the bracket until
+    the neighbours are a grid step (a tenth of a sample) from the best; at most :data:`~.rules.SCAN_REFITS`
+    refits (``run.stages.refit``).  A refit that fails is left out of the scan."""
+    s = _Scan(run, kept_fit)
+    s.at(s.d0 * SCAN_FACTOR)
+    s.at(s.d0 / SCAN_FACTOR)
+    while s.budget > 1:
+        ds, cs, k = s.costs()
         if 0 < k < len(ds) - 1:
             break                                  # bracketed
         step = ds[k] * (SCAN_FACTOR if k == len(ds) - 1 else 1.0 / SCAN_FACTOR)
-        if _on_grid(step, dt) in fits:
+        if _on_grid(step, s.dt) in s.fits:
             break                                  # at the grid's lower end
-        at(step)
-    ds, cs = costs()
-    k = int(np.argmin(cs))
+        s.at(step)
+    ds, cs, k = s.costs()
     vertex = _parabola_in_log(ds, cs, k)
     if vertex is not None:
-        at(vertex)
-    # the residual's valley is sharper than a parabola over a factor of 1.5 (a 35 ms delay on the 10 ms
-    # rig: 412921, 39001, 13172, 261288 at 21, 31, 33, 46 ms): halve the wider side of the bracket until
-    # the grid's resolution (a tenth of a sample) or the budget ends it
-    while budget[0] > 0:
-        ds, cs = costs()
-        k = int(np.argmin(cs))
+        s.at(vertex)
+    # the residual's valley is sharper than a parabola over a factor of 1.5: halve the wider side of the
+    # bracket until the grid's resolution (a tenth of a sample) or the budget ends it
+    while s.budget > 0:
+        ds, cs, k = s.costs()
         if not 0 < k < len(ds) - 1:
             break
         below, above = ds[k] - ds[k - 1], ds[k + 1] - ds[k]
-        middle = _on_grid(0.5 * (ds[k] + (ds[k + 1] if above >= below else ds[k - 1])), dt)
-        if middle in fits:
+        middle = _on_grid(0.5 * (ds[k] + (ds[k + 1] if above >= below else ds[k - 1])), s.dt)
+        if middle in s.fits:
             break                                  # neighbours a grid step away
-        at(middle)
-    ds, cs = costs()
-    k = int(np.argmin(cs))
-    best_fit = fits[ds[k]][1]
-    scan = [(d, fits[d][0], fits[d][2]) for d in sorted(fits)]
-    std = _standard_error(ds, cs, k, cand.estimation_cost(best_fit, noise)[1])
+        s.at(middle)
+    ds, cs, k = s.costs()
+    best_fit = s.fits[ds[k]][1]
+    scan = [(d, s.fits[d][0], s.fits[d][2]) for d in sorted(s.fits)]
+    std = _standard_error(ds, cs, k, estimation_cost(best_fit, run.noise)[1])
     if hasattr(best_fit, "solver"):
         best_fit.solver["delay_scan"] = {"delay_s": [d for d, _, _ in scan], "cost": [c for _, c, _ in scan],
                                          "std_s": std}

@@ -4,9 +4,10 @@ The residual of each measured signal (position, and both chamber pressures when 
 divided by that sensor's noise standard deviation, estimated from the data's second differences
 (:func:`pneusim.fit.noise_std_estimate`).  Its mean square over a sliding window of ``m`` samples
 is ``chi^2_m / m`` for pure noise; a window is flagged when it exceeds the chi-square quantile at a
-false-alarm probability of ``alpha / (number of windows)`` (Bonferroni over the recording), so a
-recording explained up to noise gives no window.  Neighbouring flagged windows are merged and each
-stretch is tagged with the operating condition during it, computed from the recording alone.
+false-alarm probability of ``alpha / (number of windows)`` (``alpha`` = :data:`~.rules.FALSE_ALARM`,
+Bonferroni over the recording), so a recording explained up to noise gives no window.  Neighbouring
+flagged windows are merged and each stretch is tagged with the operating condition during it, computed
+from the recording alone.
 """
 
 from __future__ import annotations
@@ -15,11 +16,15 @@ import numpy as np
 from scipy import stats
 
 from .result import MismatchWindow
+from .rules import FALSE_ALARM, LOCATE_WINDOW_S, LOCATE_WINDOW_SAMPLES, MAX_WINDOWS
 
-__all__ = ["operating_conditions", "locate_mismatch", "velocity_estimate"]
+__all__ = ["operating_conditions", "locate_mismatch", "velocity_estimate", "named_states"]
 
-#: overall false-alarm probability of a flagged window on a recording explained up to noise
-FALSE_ALARM = 1e-3
+
+def named_states(fit) -> dict:
+    """A fit's model trajectory by state name: ``{state name: value at every sample (N,)}``."""
+    X = fit.trajectory()
+    return {name: X[:, i] for i, name in enumerate(fit.model.state_names)}
 
 
 def velocity_estimate(time_s: np.ndarray, position_m: np.ndarray, window_s: float = 0.03) -> np.ndarray:
@@ -103,7 +108,7 @@ def _describe(masks: dict, a: int, b: int) -> str:
 
 
 def locate_mismatch(recording, rig, model_states: dict, noise_std: dict, window_s: float | None = None,
-                    max_windows: int = 50) -> tuple[list[MismatchWindow], dict]:
+                    max_windows: int = MAX_WINDOWS) -> tuple[list[MismatchWindow], dict]:
     """Windows where the residual of a signal exceeds what its sensor noise explains.
 
     Parameters
@@ -115,7 +120,8 @@ def locate_mismatch(recording, rig, model_states: dict, noise_std: dict, window_
     noise_std : dict
         ``{signal name: sensor noise standard deviation}`` in the signal's unit.
     window_s : float, optional
-        Length of the sliding window, s (default: 20 samples or 0.1 s, whichever is longer).
+        Length of the sliding window, s (default: :data:`~.rules.LOCATE_WINDOW_S`; at least
+        :data:`~.rules.LOCATE_WINDOW_SAMPLES` samples).
     max_windows : int
         At most this many windows are returned, the strongest (by mean normalised square) first
         in time order.
@@ -129,7 +135,7 @@ def locate_mismatch(recording, rig, model_states: dict, noise_std: dict, window_
     """
     t = recording.time_s
     dt = float(t[1] - t[0])
-    m = max(20, int(round((window_s or 0.1) / dt)))
+    m = max(LOCATE_WINDOW_SAMPLES, int(round((window_s or LOCATE_WINDOW_S) / dt)))
     n = t.size
     n_windows = max(1, n // m)
     threshold = float(stats.chi2.ppf(1.0 - FALSE_ALARM / n_windows, m) / m)

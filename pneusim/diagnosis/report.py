@@ -18,7 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .locate import velocity_estimate
+from .locate import named_states, velocity_estimate
+from .refits import noise_levels
 from .result import DiagnosisResult
 
 __all__ = ["write_report"]
@@ -33,12 +34,6 @@ def _plt():
     return plt
 
 
-def _states(fit):
-    from .diagnose import _named
-
-    return _named(fit)
-
-
 def _shade(ax, result, signal=None):
     for w in result.mismatch:
         if signal is None or w.signal == signal:
@@ -49,7 +44,7 @@ def plot_fit(result: DiagnosisResult, path) -> Path:
     plt = _plt()
     rec = result.nominal_fit.recording
     t = rec.time_s
-    nom, fin = _states(result.nominal_fit), _states(result.final_fit)
+    nom, fin = named_states(result.nominal_fit), named_states(result.final_fit)
     signals = [("position_m", rec.position_m, 1e3, "position (mm)")]
     if rec.has_pressures:
         signals += [("pressure_a_Pa", rec.pressure_a_Pa, 1e-5, "p_A (bar abs)"),
@@ -80,7 +75,7 @@ def plot_residuals(result: DiagnosisResult, path, noise: dict) -> Path:
     plt = _plt()
     rec = result.nominal_fit.recording
     t = rec.time_s
-    nom, fin = _states(result.nominal_fit), _states(result.final_fit)
+    nom, fin = named_states(result.nominal_fit), named_states(result.final_fit)
     names = ["position_m"] + (["pressure_a_Pa", "pressure_b_Pa"] if rec.has_pressures else [])
     fig, axes = plt.subplots(len(names), 1, sharex=True, figsize=(11, 2.4 * len(names)), squeeze=False)
     for ax, name in zip(axes[:, 0], names):
@@ -123,85 +118,115 @@ def _binned(x, y, bins=20):
     return np.array(centres), np.array(means)
 
 
-def plot_evidence(result: DiagnosisResult, k: int, path) -> Path:
-    """The evidence of finding ``k``: the signature before (nominal) and after (with the findings up to k)."""
-    plt = _plt()
-    finding = result.findings[k]
-    eff = finding.effect
+#: which evidence plot shows each effect's signature (the residual over time for any other effect): the
+#: signature its ``evidence`` text reads (an Effect fact the contract does not declare yet)
+EVIDENCE_PLOTS = {
+    "friction_asymmetry": "direction", "external_load": "position",
+    "pressure_dependent_friction": "pressure difference", "supply_pressure_droop": "pressure difference",
+    "transport_delay": "lag", "valve_dynamics": "lag", "valve_deadband": "command map", "valve_offset": "command map",
+}
+
+
+def _binned_residuals(ax, x, residuals, xlabel: str, ylabel: str, title: str) -> None:
+    """Binned means of each ``(residual, colour, label)`` against ``x``."""
+    for e, c, lab in residuals:
+        cx, cy = _binned(x, e)
+        ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+
+
+def _plot_direction(ax, result, v, x, e_nom, e_fin, nom, fin):
+    _binned_residuals(ax, v * 1e3, [(e_nom * 1e3, "C0", "nominal"), (e_fin * 1e3, "C2", "with findings")],
+                      "measured velocity (mm/s)", "velocity residual (mm/s), binned mean",
+                      "residual against direction of motion")
+
+
+def _plot_position(ax, result, v, x, e_nom, e_fin, nom, fin):
+    _binned_residuals(ax, x * 1e3, [(e_nom * 1e3, "C0", "nominal"), (e_fin * 1e3, "C2", "with findings")],
+                      "position (mm)", "velocity residual (mm/s), binned mean", "residual against position")
+
+
+def _plot_pressure_difference(ax, result, v, x, e_nom, e_fin, nom, fin):
     rec = result.nominal_fit.recording
-    t, x, u = rec.time_s, rec.position_m, rec.valve_cmd_V
-    nom = _states(result.nominal_fit)
-    fin = _states(result.final_fit)
+    if rec.has_pressures:
+        dp = np.abs(rec.pressure_a_Pa - rec.pressure_b_Pa)
+        xlabel = "|p_A - p_B| measured (bar)"
+    else:
+        dp = np.abs(nom["pressure_a_Pa"] - nom["pressure_b_Pa"])
+        xlabel = "|p_A - p_B| of the nominal model (bar)"
+    residuals = [(np.abs(e_nom) * 1e3, "C0", "nominal"), (np.abs(e_fin) * 1e3, "C2", "with findings")]
+    _binned_residuals(ax, dp * 1e-5, residuals, xlabel, "|velocity residual| (mm/s), binned mean",
+                      "residual against the pressure difference across the seal")
+
+
+def _plot_lag(ax, result, v, x, e_nom, e_fin, nom, fin):
+    rec = result.nominal_fit.recording
+    t, u = rec.time_s, rec.valve_cmd_V
+    dt = float(t[1] - t[0])
+    du = np.diff(u)
+    lags = np.arange(0, max(3, min(int(0.2 / dt), du.size // 4)))
+    for st, c, lab in ((nom, "C0", "nominal"), (fin, "C2", "with findings")):
+        dr = np.diff(np.where(np.isfinite(st["position_m"]), x - st["position_m"], 0.0))
+        cc = [np.corrcoef(du[:du.size - L], dr[L:])[0, 1] if np.std(dr[L:]) > 0 else np.nan for L in lags]
+        ax.plot(lags * dt * 1e3, cc, "o-", color=c, label=lab, ms=3)
+    ax.axhline(0, color="0.5", lw=0.5)
+    ax.set_xlabel("lag (ms)")
+    ax.set_ylabel("correlation of command and residual increments")
+    ax.set_title("input-residual cross-correlation")
+
+
+def _plot_command_map(ax, result, v, x, e_nom, e_fin, nom, fin):
+    u = result.nominal_fit.recording.valve_cmd_V
+    null = float(result.nominal_fit.rig.params.get("valve_null_V", 5.0))
+    small = np.abs(u - null) < 3.0
+    for vv, c, lab in ((v, "0.2", "measured"), (nom["velocity_m_per_s"], "C0", "nominal"),
+                       (fin["velocity_m_per_s"], "C2", "with findings")):
+        cx, cy = _binned(np.round(u[small], 2), vv[small] * 1e3, bins=30)
+        ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
+    ax.axvline(null, color="0.5", lw=0.5, ls=":")
+    ax.set_xlabel("valve command (V)")
+    ax.set_ylabel("velocity (mm/s), binned mean")
+    ax.set_title("command-velocity map (mean velocity at each command)")
+
+
+def _plot_over_time(ax, result, v, x, e_nom, e_fin, nom, fin):
+    rec = result.nominal_fit.recording
+    t, s = rec.time_s, result.signatures
+    ax.plot(t, (x - nom["position_m"]) * 1e3, lw=0.6, color="C0", label="nominal")
+    ax.plot(t, (x - fin["position_m"]) * 1e3, lw=0.6, color="C2", label="with findings")
+    if rec.has_pressures:
+        ax2 = ax.twinx()
+        ax2.plot(t, (rec.pressure_a_Pa - nom["pressure_a_Pa"]) * 1e-3, lw=0.4, color="C1", alpha=0.6,
+                 label="p_A residual, nominal (kPa)")
+        ax2.plot(t, (rec.pressure_a_Pa - fin["pressure_a_Pa"]) * 1e-3, lw=0.4, color="C4", alpha=0.6,
+                 label="p_A residual, with findings (kPa)")
+        ax2.set_ylabel("pressure residual (kPa)")
+        ax2.legend(loc="lower right", fontsize=7)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("position residual (mm)")
+    ax.set_title(f"residual over time (creep near null {s.get('creep_mm_s', float('nan')):+.3f} mm/s)")
+
+
+_PLOTS = {"direction": _plot_direction, "position": _plot_position, "pressure difference": _plot_pressure_difference,
+          "lag": _plot_lag, "command map": _plot_command_map}
+
+
+def plot_evidence(result: DiagnosisResult, k: int, path) -> Path:
+    """The evidence of finding ``k``: the signature before (nominal) and after (with the findings up to k),
+    as :data:`EVIDENCE_PLOTS` says for its effect."""
+    plt = _plt()
+    eff = result.findings[k].effect
+    rec = result.nominal_fit.recording
+    t, x = rec.time_s, rec.position_m
+    nom, fin = named_states(result.nominal_fit), named_states(result.final_fit)
     v = velocity_estimate(t, x)
     e_nom = v - velocity_estimate(t, np.nan_to_num(nom["position_m"]))
     e_fin = v - velocity_estimate(t, np.nan_to_num(fin["position_m"]))
     fig, ax = plt.subplots(figsize=(7, 4.2))
-    if eff in ("friction_asymmetry",):
-        for e, c, lab in ((e_nom, "C0", "nominal"), (e_fin, "C2", "with findings")):
-            cx, cy = _binned(v * 1e3, e * 1e3)
-            ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
-        ax.set_xlabel("measured velocity (mm/s)")
-        ax.set_ylabel("velocity residual (mm/s), binned mean")
-        ax.set_title("residual against direction of motion")
-    elif eff == "external_load":
-        for e, c, lab in ((e_nom, "C0", "nominal"), (e_fin, "C2", "with findings")):
-            cx, cy = _binned(x * 1e3, e * 1e3)
-            ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
-        ax.set_xlabel("position (mm)")
-        ax.set_ylabel("velocity residual (mm/s), binned mean")
-        ax.set_title("residual against position")
-    elif eff in ("pressure_dependent_friction", "supply_pressure_droop"):
-        if rec.has_pressures:
-            dp = np.abs(rec.pressure_a_Pa - rec.pressure_b_Pa)
-            xlabel = "|p_A - p_B| measured (bar)"
-        else:
-            dp = np.abs(nom["pressure_a_Pa"] - nom["pressure_b_Pa"])
-            xlabel = "|p_A - p_B| of the nominal model (bar)"
-        for e, c, lab in ((e_nom, "C0", "nominal"), (e_fin, "C2", "with findings")):
-            cx, cy = _binned(dp * 1e-5, np.abs(e) * 1e3)
-            ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
-        ax.set_xlabel(xlabel)
-        ax.set_ylabel("|velocity residual| (mm/s), binned mean")
-        ax.set_title("residual against the pressure difference across the seal")
-    elif eff in ("transport_delay", "valve_dynamics"):
-        dt = float(t[1] - t[0])
-        du = np.diff(u)
-        lags = np.arange(0, max(3, min(int(0.2 / dt), du.size // 4)))
-        for st, c, lab in ((nom, "C0", "nominal"), (fin, "C2", "with findings")):
-            dr = np.diff(np.where(np.isfinite(st["position_m"]), x - st["position_m"], 0.0))
-            cc = [np.corrcoef(du[:du.size - L], dr[L:])[0, 1] if np.std(dr[L:]) > 0 else np.nan for L in lags]
-            ax.plot(lags * dt * 1e3, cc, "o-", color=c, label=lab, ms=3)
-        ax.axhline(0, color="0.5", lw=0.5)
-        ax.set_xlabel("lag (ms)")
-        ax.set_ylabel("correlation of command and residual increments")
-        ax.set_title("input-residual cross-correlation")
-    elif eff in ("valve_deadband", "valve_offset"):
-        vn = nom["velocity_m_per_s"]
-        vf = fin["velocity_m_per_s"]
-        null = float(result.nominal_fit.rig.params.get("valve_null_V", 5.0))
-        small = np.abs(u - null) < 3.0
-        for vv, c, lab in ((v, "0.2", "measured"), (vn, "C0", "nominal"), (vf, "C2", "with findings")):
-            cx, cy = _binned(np.round(u[small], 2), vv[small] * 1e3, bins=30)
-            ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
-        ax.axvline(null, color="0.5", lw=0.5, ls=":")
-        ax.set_xlabel("valve command (V)")
-        ax.set_ylabel("velocity (mm/s), binned mean")
-        ax.set_title("command-velocity map (mean velocity at each command)")
-    else:  # leakage, heat transfer and anything else: the residual over time
-        s = result.signatures
-        ax.plot(t, (x - nom["position_m"]) * 1e3, lw=0.6, color="C0", label="nominal")
-        ax.plot(t, (x - fin["position_m"]) * 1e3, lw=0.6, color="C2", label="with findings")
-        if rec.has_pressures:
-            ax2 = ax.twinx()
-            ax2.plot(t, (rec.pressure_a_Pa - nom["pressure_a_Pa"]) * 1e-3, lw=0.4, color="C1", alpha=0.6,
-                     label="p_A residual, nominal (kPa)")
-            ax2.plot(t, (rec.pressure_a_Pa - fin["pressure_a_Pa"]) * 1e-3, lw=0.4, color="C4", alpha=0.6,
-                     label="p_A residual, with findings (kPa)")
-            ax2.set_ylabel("pressure residual (kPa)")
-            ax2.legend(loc="lower right", fontsize=7)
-        ax.set_xlabel("time (s)")
-        ax.set_ylabel("position residual (mm)")
-        ax.set_title(f"residual over time (creep near null {s.get('creep_mm_s', float('nan')):+.3f} mm/s)")
+    plot = _PLOTS.get(EVIDENCE_PLOTS.get(eff), _plot_over_time)
+    plot(ax, result, v, x, e_nom, e_fin, nom, fin)
     ax.legend(fontsize=8)
     fig.suptitle(f"{k + 1}. {eff}", fontsize=10)
     fig.tight_layout()
@@ -307,8 +332,6 @@ def _html(markdown: str, title: str) -> str:
 
 def write_report(result: DiagnosisResult, folder) -> Path:
     """Write the report folder; returns the path of ``index.html`` (the file to open)."""
-    from .candidates import noise_levels
-
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     result.write_json(folder / "diagnosis.json")

@@ -57,6 +57,47 @@ def _band(u_rel, speed, moving):
     return float(np.percentile(np.abs(u_rel[go]), 5))
 
 
+def _lag(u, x, model_position, ok, dt: float) -> tuple[float, float]:
+    """``(lag_s, lag_r)``: the lag of the peak of the cross-correlation of command increments with residual
+    increments, lags 0 .. 0.2 s, and its correlation (NaN for a constant command or residual)."""
+    r = np.where(ok, x - np.nan_to_num(model_position), 0.0)
+    du, dr = np.diff(u), np.diff(r)
+    max_lag = max(2, min(int(round(0.2 / dt)), du.size // 4))
+    if np.std(du) > 0 and np.std(dr) > 0:
+        cc = np.array([_corr(du[:du.size - k], dr[k:]) for k in range(max_lag)])
+        k_best = int(np.nanargmax(np.abs(cc))) if np.isfinite(cc).any() else 0
+        return k_best * dt, float(cc[k_best])
+    return float("nan"), float("nan")
+
+
+def _small_command_speed_deficit(u_rel, v_meas, v_model, ok) -> float:
+    """Speed measured / model for the smallest and the largest quarter of the off-null commands: a dead band
+    (or a spool that cannot follow) takes more from small commands than from large ones."""
+    off = (np.abs(u_rel) > 0.02 * 5.0) & ok
+    if not off.sum() > 40:
+        return float("nan")
+    a = np.abs(u_rel[off])
+    lo_q, hi_q = np.percentile(a, [25, 75])
+    vm, vs = np.abs(v_meas[off]), np.abs(v_model[off])
+    small, large = a <= lo_q, a >= hi_q
+    ratio_small = vm[small].mean() / max(vs[small].mean(), 1e-12)
+    ratio_large = vm[large].mean() / max(vs[large].mean(), 1e-12)
+    return float(1.0 - ratio_small / ratio_large) if ratio_large > 0 else float("nan")
+
+
+def _null_shift(u_rel, v_meas, v_model, ok) -> float:
+    """The command at which the measured velocity crosses zero (a line through the small-command samples), minus
+    the model's, V."""
+    small = (np.abs(u_rel) < 1.0) & ok
+    if not (small.sum() > 20 and np.ptp(u_rel[small]) > 0):
+        return float("nan")
+    a_m = np.polyfit(u_rel[small], v_meas[small], 1)
+    a_s = np.polyfit(u_rel[small], v_model[small], 1)
+    cross_m = -a_m[1] / a_m[0] if a_m[0] != 0 else float("nan")
+    cross_s = -a_s[1] / a_s[0] if a_s[0] != 0 else float("nan")
+    return float(np.clip(cross_m - cross_s, -5, 5))
+
+
 def compute_signatures(recording, rig, model_states: dict, velocity_model: np.ndarray) -> dict:
     """The signature numbers of the nominal model's residual (see the module docstring).
 
@@ -92,17 +133,7 @@ def compute_signatures(recording, rig, model_states: dict, velocity_model: np.nd
     moving = np.abs(v_meas) > moving_thr
     out["pressure_r"] = _corr((e_v ** 2)[ok & moving], dp[ok & moving])
     out["position_r"] = _corr(e_v[ok], x[ok])
-    # cross-correlation of command increments with residual increments, lags 0 .. 0.2 s
-    r = np.where(ok, x - np.nan_to_num(model_states["position_m"]), 0.0)
-    du, dr = np.diff(u), np.diff(r)
-    max_lag = max(2, min(int(round(0.2 / dt)), du.size // 4))
-    if np.std(du) > 0 and np.std(dr) > 0:
-        cc = np.array([_corr(du[:du.size - k], dr[k:]) for k in range(max_lag)])
-        k_best = int(np.nanargmax(np.abs(cc))) if np.isfinite(cc).any() else 0
-        out["lag_s"] = k_best * dt
-        out["lag_r"] = float(cc[k_best])
-    else:
-        out["lag_s"], out["lag_r"] = float("nan"), float("nan")
+    out["lag_s"], out["lag_r"] = _lag(u, x, model_states["position_m"], ok, dt)
     near_null = masks["valve near null"] & ok
     model_still = np.abs(v_model) < moving_thr
     hold = near_null & model_still
@@ -110,28 +141,8 @@ def compute_signatures(recording, rig, model_states: dict, velocity_model: np.nd
                          if hold.sum() > 10 else float("nan"))
     u_rel = u - null
     out["flat_spot_V"] = (_band(u_rel, v_meas, moving) - _band(u_rel, v_model, np.abs(v_model) > moving_thr))
-    # speed measured / model for the smallest and the largest quarter of the off-null commands: a dead
-    # band (or a spool that cannot follow) takes more from small commands than from large ones
-    off = (np.abs(u_rel) > 0.02 * 5.0) & ok
-    if off.sum() > 40:
-        a = np.abs(u_rel[off])
-        lo_q, hi_q = np.percentile(a, [25, 75])
-        vm, vs = np.abs(v_meas[off]), np.abs(v_model[off])
-        small, large = a <= lo_q, a >= hi_q
-        ratio_small = vm[small].mean() / max(vs[small].mean(), 1e-12)
-        ratio_large = vm[large].mean() / max(vs[large].mean(), 1e-12)
-        out["small_command_speed_deficit"] = float(1.0 - ratio_small / ratio_large) if ratio_large > 0 else float("nan")
-    else:
-        out["small_command_speed_deficit"] = float("nan")
-    small = (np.abs(u_rel) < 1.0) & ok
-    if small.sum() > 20 and np.ptp(u_rel[small]) > 0:
-        a_m = np.polyfit(u_rel[small], v_meas[small], 1)
-        a_s = np.polyfit(u_rel[small], v_model[small], 1)
-        cross_m = -a_m[1] / a_m[0] if a_m[0] != 0 else float("nan")
-        cross_s = -a_s[1] / a_s[0] if a_s[0] != 0 else float("nan")
-        out["null_shift_V"] = float(np.clip(cross_m - cross_s, -5, 5))
-    else:
-        out["null_shift_V"] = float("nan")
+    out["small_command_speed_deficit"] = _small_command_speed_deficit(u_rel, v_meas, v_model, ok)
+    out["null_shift_V"] = _null_shift(u_rel, v_meas, v_model, ok)
     if recording.has_pressures:
         still = masks["holding still"] & ok
         rates = []

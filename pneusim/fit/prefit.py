@@ -61,7 +61,7 @@ def prefit_recording(recording: Recording, rig: Rig | str | None = None, effects
 
     A cheap way to ask how well a model *can* explain the start of a recording from the data sheet,
     without the whole fit: diagnosis ranks candidate effects this way where the nominal fit ends far
-    above noise (:mod:`pneusim.diagnosis.cold`).  ``second_route`` and ``max_evaluations`` as in
+    above noise (:mod:`pneusim.diagnosis.from_data_sheet`).  ``second_route`` and ``max_evaluations`` as in
     :func:`.stages.prefit`.  ``start``: the window begins at this sample of the estimation part instead
     of its first (the recording's estimation/validation split stays where ``validation_fraction`` puts
     it).  Raises :class:`FitError` like :func:`fit_recording`.

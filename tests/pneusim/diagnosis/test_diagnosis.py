@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from pneusim.cli import main
-from pneusim.diagnosis import diagnose, write_report
+from pneusim.diagnosis import Diagnosis, DiagnosisStages, diagnose, write_report
 from pneusim.experiment import standard_experiment
 from pneusim.model import make_effect
 from pneusim.recording import write_recording
@@ -93,14 +93,16 @@ def test_screening_counts_what_a_candidate_explains_beyond_the_same_steps_withou
     2659, the steps alone 104).  A candidate's gain is therefore measured from the cost those steps reach
     without it: one that adds nothing (no load, nothing freed) gains nothing."""
     from pneusim.diagnosis import candidates as cand
+    from pneusim.diagnosis.refits import noise_levels
+    from pneusim.diagnosis.rules import SCANNED_EVALUATIONS, SCREEN_EVALUATIONS
     from pneusim.recording import read_recording
 
     path, result = control
     recording, fit = read_recording(path), result.nominal_fit
-    noise = cand.noise_levels(recording, fit.rig)
+    noise = noise_levels(recording, fit.rig)
     start = cand.screen(fit, recording, None, noise)["cost"]
     polished = cand.polished_costs(fit, recording, noise)
-    assert set(polished) == {cand.SCREEN_EVALUATIONS, cand.DELAY_EVALUATIONS}
+    assert set(polished) == {SCREEN_EVALUATIONS, SCANNED_EVALUATIONS}
     assert all(cost <= start for cost in polished.values())
     idle = cand.Candidate("external_load", "no load", make_effect("external_load", force_N=0.0), [])
     idle_cost = cand.screen(fit, recording, idle, noise)["cost"]
@@ -226,7 +228,7 @@ def test_batch_one_failure_does_not_stop_the_others(tmp_path, control_recording)
 
 
 def test_keep_test_near_the_noise_floor():
-    from pneusim.diagnosis.candidates import passes_test
+    from pneusim.diagnosis.rules import passes_test
 
     n, k = 16800, 2
     # practice2_17 (pressure-dependent friction): validation 99.25 -> 99.66 %, F = 0.331 points: the
@@ -246,7 +248,7 @@ def test_keep_test_near_the_noise_floor():
 def test_nothing_is_screened_where_no_refit_could_pass_on_the_validation_part():
     """A nominal validation error already within reach of the noise floor leaves no room for a refit to pass
     the keep test, whatever it does on the estimation part."""
-    from pneusim.diagnosis.candidates import PERFECT_ERROR, passes_test, validation_room
+    from pneusim.diagnosis.rules import PERFECT_ERROR, passes_test, validation_room
 
     F = 0.3
     # a paper-2 control: the nominal error 1.05 F; the best a refit can reach is about F
@@ -265,7 +267,8 @@ def test_estimation_cost_counts_the_continuity_defects_left_open():
     closes them is not held to an unreachable residual (practice2_14)."""
     from types import SimpleNamespace
 
-    from pneusim.diagnosis.candidates import DEFECT_WEIGHT, estimation_cost
+    from pneusim.diagnosis.refits import estimation_cost
+    from pneusim.diagnosis.rules import DEFECT_WEIGHT
 
     recording = SimpleNamespace(position_m=np.zeros(100), pressure_a_Pa=None)
     noise = {"position_m": 2e-5}
@@ -288,22 +291,21 @@ def _scaled_residual(fit, factor):
     return dataclasses.replace(fit, sigma={k: v * math.sqrt(factor) for k, v in fit.sigma.items()})
 
 
-def test_refit_above_the_nominal_residual_is_retried_from_the_neutral_value(asymmetry_recording, monkeypatch):
+def test_refit_above_the_nominal_residual_is_retried_from_the_neutral_value(asymmetry_recording):
     """A refit nests the nominal model: one that ends above the nominal estimation residual was led into a
     worse basin by its screened start, and is refitted once more from the effect's neutral value with the
-    nominal parameters; the lower of the two is tested.  The refits are stand-ins (the nominal fit with
-    its residual scaled) so that the test checks this rule, not the optimiser."""
-    from pneusim.diagnosis import candidates as cand
-
+    nominal parameters; the lower of the two is tested.  The refits are stand-ins passed as the diagnosis's
+    ``refit`` stage (the nominal fit with its residual scaled) so that the test checks this rule, not the
+    optimiser."""
     calls = []
 
-    def fake_refit(recording, rig, effects, warm, start_values=None):
+    def stand_in_refit(recording, rig, effects, warm, start_values=None):
         calls.append((effects[0].values["retract_factor"], start_values))
         # first: the screened start ends 20 % above the nominal residual; second: 10 % below it
         return _scaled_residual(warm, 1.2 if len(calls) == 1 else 0.9)
 
-    monkeypatch.setattr(cand, "refit", fake_refit)
-    result = diagnose(asymmetry_recording, effects=["friction_asymmetry"])
+    stages = DiagnosisStages(refit=stand_in_refit)
+    result = Diagnosis(effects=["friction_asymmetry"], stages=stages).fit(asymmetry_recording)
     trial = next(t for t in result.candidates if t.effect == "friction_asymmetry")
     assert len(calls) == 2, calls
     assert calls[1] == (1.0, None)    # the neutral factor, the nominal fit's friction levels
@@ -312,49 +314,49 @@ def test_refit_above_the_nominal_residual_is_retried_from_the_neutral_value(asym
     assert trial.estimation_cost_drop > 0
 
 
-def test_refit_below_the_nominal_residual_is_not_retried(asymmetry_recording, monkeypatch):
-    from pneusim.diagnosis import candidates as cand
-
+def test_refit_below_the_nominal_residual_is_not_retried(asymmetry_recording):
     calls = []
 
-    def fake_refit(recording, rig, effects, warm, start_values=None):
+    def stand_in_refit(recording, rig, effects, warm, start_values=None):
         calls.append(effects[0].values["retract_factor"])
         return _scaled_residual(warm, 0.95)
 
-    monkeypatch.setattr(cand, "refit", fake_refit)
-    result = diagnose(asymmetry_recording, effects=["friction_asymmetry"])
+    stages = DiagnosisStages(refit=stand_in_refit)
+    result = Diagnosis(effects=["friction_asymmetry"], stages=stages).fit(asymmetry_recording)
     trial = next(t for t in result.candidates if t.effect == "friction_asymmetry")
     assert len(calls) == 1 and "neutral" not in trial.status
 
 
-def test_delay_scan_with_refits_walks_to_the_minimum(monkeypatch):
+def test_delay_scan_with_refits_walks_to_the_minimum():
     """The refit scan of a kept delay walks downhill in the estimation residual and ends at the parabola's
-    vertex; stand-in refits whose residual is a known function of the delay (minimum at 12.5 ms, the
-    kept delay 8 ms as on practice2_28), so that the test checks the scan, not the optimiser."""
+    vertex; stand-in refits, passed as the ``refit`` stage, whose residual is a known function of the delay
+    (minimum at 12.5 ms, the kept delay 8 ms as on practice2_28), so that the test checks the scan, not the
+    optimiser."""
     from types import SimpleNamespace
 
-    from pneusim.diagnosis import candidates as cand
+    from stand_ins import NOISE, cost_fit, stand_in_run
+
     from pneusim.diagnosis.delay import SCAN_REFITS, scan_with_refits
+    from pneusim.diagnosis.run import NominalBaseline
 
     def cost(delay_s):
         return 1e4 * (1.0 + math.log(delay_s / 0.0125) ** 2)
 
-    def fake_refit(recording, rig, effects, warm, start_values=None):
-        d = effects[-1].values["delay_s"]
-        return SimpleNamespace(effects_=list(effects), cost=cost(d))
+    def stand_in_refit(recording, rig, effects, warm, start_values=None):
+        return cost_fit(cost(effects[-1].values["delay_s"]), effects)
 
-    monkeypatch.setattr(cand, "refit", fake_refit)
-    monkeypatch.setattr(cand, "estimation_cost", lambda fit, noise: (fit.cost, 1))
-    kept = SimpleNamespace(effects_=[make_effect("transport_delay", delay_s=0.008)], cost=cost(0.008))
-    best, scan = scan_with_refits(SimpleNamespace(sample_time_s=0.001), None, kept, {})
+    run = stand_in_run(NominalBaseline(NOISE, math.nan, 1, math.nan, 0.1, 0.3), SimpleNamespace(sample_time_s=0.001),
+                       refit=stand_in_refit)
+    kept = cost_fit(cost(0.008), [make_effect("transport_delay", delay_s=0.008)])
+    best, scan = scan_with_refits(run, kept)
     delay = best.effects_[-1].values["delay_s"]
     assert delay == pytest.approx(0.0125, abs=0.0002)
     assert len(scan) <= SCAN_REFITS + 1
     # every delay tried is on the grid of a tenth of a sample
     assert all(abs(d / 0.0001 - round(d / 0.0001)) < 1e-6 for d, _, _ in scan)
     # already at the minimum: the kept fit stays, its neighbours tried narrow in on it
-    kept = SimpleNamespace(effects_=[make_effect("transport_delay", delay_s=0.0125)], cost=cost(0.0125))
-    best, scan = scan_with_refits(SimpleNamespace(sample_time_s=0.001), None, kept, {})
+    kept = cost_fit(cost(0.0125), [make_effect("transport_delay", delay_s=0.0125)])
+    best, scan = scan_with_refits(run, kept)
     assert best is kept and len(scan) <= SCAN_REFITS + 1
     ds = [d for d, _, _ in scan]
     k = ds.index(0.0125)

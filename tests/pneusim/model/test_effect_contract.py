@@ -143,8 +143,8 @@ def test_an_effect_missing_facts_is_caught():
 def registry_views(rigs) -> dict:
     """What the fit and the diagnosis build from the registry, in the form of the pins."""
     from pneusim.diagnosis import candidates as cand
-    from pneusim.diagnosis.cold import one_start_each
-    from pneusim.diagnosis.diagnose import FAMILIES
+    from pneusim.diagnosis.from_data_sheet import one_start_each
+    from pneusim.diagnosis.candidates import FAMILIES
     from pneusim.fit import EFFECT_FREE
     from pneusim.fit.parameters import SEARCHED, parameter_bounds, parameter_scale
 
@@ -182,7 +182,7 @@ def test_the_registry_order_and_the_fit_tables_are_as_pinned(views):
 
 
 def test_the_diagnosis_views_are_as_pinned(views):
-    from pneusim.diagnosis.diagnose import FAMILIES, _family
+    from pneusim.diagnosis.candidates import FAMILIES, family_of as _family
 
     assert views["neutral"] == PINS["neutral"]
     assert views["families"] == PINS["families"]

@@ -1,0 +1,269 @@
+"""The diagnosis as an estimator with swappable stages: :class:`Diagnosis` and :class:`DiagnosisStages`.
+
+``Diagnosis(effects=..., ...).fit(recording)`` runs, in order:
+
+1. **nominal fit** -- the rig's free parameters (:data:`pneusim.fit.DEFAULT_FREE`) fitted to the estimation
+   part (the first 70 %); the last 30 % validates and is never fitted;
+2. **locate** (:mod:`.locate`) -- windows where the residual of the fitted nominal model exceeds the sensor
+   noise, tagged with signal and operating condition;
+3. **signatures** (:mod:`.signatures`) -- the vocabulary's signatures as numbers;
+4. **screen** -- by how far the nominal fit is from the recording (:func:`.rules.screening_route`): not at all
+   where its validation error leaves no refit room to pass the keep test; around the nominal optimum where it
+   ends within :data:`~.rules.MODEL_SHORT` times the noise (:mod:`.around_nominal`); from the data sheet,
+   every candidate pre-fitted on the window where the residual is largest, where it ends farther above
+   (:mod:`.from_data_sheet`);
+5. **confirm** -- the leading candidates, one per look-alike family, then their look-alikes, fitted whole
+   (warm from the nominal fit, or from the data sheet) and kept only when they pass the keep test
+   (:func:`.rules.passes_test`: an information criterion on the estimation part *and* a validation fit improved
+   by more than noise explains);
+6. **delay scan** (:mod:`.delay`) -- a kept transport delay that leads, or comes close, estimated by refits
+   (a delay has no gradient);
+7. **findings** (:mod:`.findings`) -- the kept candidate with the best validation fit first, and a second
+   effect on top of it;
+8. **other** -- with nothing kept, an ``other`` finding where the nominal residual stays well above noise.
+
+Each step is a field of :class:`DiagnosisStages`, and so are the fits, screenings and the keep test the
+steps call; a step reads and writes one :class:`~.run.DiagnosisRun`.  The thresholds are in :mod:`.rules`.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..errors import FitError, PneusimError
+from ..fit import prefit_recording
+from ..fit.setup import rig_of
+from ..fit.threads import one_blas_thread
+from ..recording import Recording, read_recording
+from ..rig import Rig
+from .around_nominal import confirm_around_nominal, screen_around_nominal
+from .candidates import candidate_list, polished_costs, screen
+from .delay import scan_kept_delay, screened_delays
+from .findings import add_findings, other_finding
+from .from_data_sheet import confirm_from_data_sheet, mismatch_window, screen_from_data_sheet
+from .locate import locate_mismatch, named_states
+from .refits import estimation_cost, fit_from_data_sheet, fit_nominal, noise_levels, refit
+from .result import DiagnosisResult
+from .rules import (MAX_FINDINGS, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, MODEL_SHORT, SCREEN_SAMPLES,
+                    VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE, VALIDATION_MOTION_NOISE, WINDOW_SAMPLES,
+                    keep_test_text, noise_floor_points, passes_test, screening_route, validation_room)
+from .run import DiagnosisRun, NominalBaseline
+from .signatures import compute_signatures
+
+__all__ = ["Diagnosis", "DiagnosisStages"]
+
+
+@dataclass(frozen=True)
+class DiagnosisStages:
+    """The stages of :class:`Diagnosis`, each a callable, today's by default.  Pass others to study or test one
+    stage alone, e.g. ``DiagnosisStages(refit=stand_in)`` runs the method on stand-in refits.
+
+    The steps, in order (see :mod:`.estimator`):
+
+    nominal_fit : ``(recording, rig, validation_fraction) -> FitResult`` (:func:`.refits.fit_nominal`)
+    locate : ``(recording, rig, states, noise) -> (windows, info)`` (:func:`.locate.locate_mismatch`)
+    signatures : ``(recording, rig, states, velocity) -> dict`` (:func:`.signatures.compute_signatures`)
+    screen_around_nominal, confirm_around_nominal : near noise (:mod:`.around_nominal`)
+    screen_from_data_sheet, confirm_from_data_sheet : far above noise (:mod:`.from_data_sheet`)
+    delay_scan : ``(run) -> None`` (:func:`.delay.scan_kept_delay`)
+    findings : ``(run, kept) -> (findings, final fit)`` (:func:`.findings.add_findings`)
+    other : ``(nominal, noise, windows) -> Finding or None`` (:func:`.findings.other_finding`)
+
+    What the steps call:
+
+    screen : ``(fit, recording, candidate or None, noise, samples) -> dict`` (:func:`.candidates.screen`)
+    polished_costs : ``(fit, recording, noise, samples) -> {evaluations: cost}`` (:func:`.candidates.polished_costs`)
+    prefit : :func:`pneusim.fit.prefit_recording`, the screening from the data sheet's pre-fit
+    refit : ``(recording, rig, effects, warm, start_values=None) -> FitResult`` (:func:`.refits.refit`)
+    fit : ``(recording, rig, effects, validation_fraction, start_values) -> FitResult``, a whole fit from the
+        data sheet (:func:`.refits.fit_from_data_sheet`)
+    keep_test : ``(cost0, cost1, n, k, fit0, fit1, floor) -> (kept, threshold, reason)`` (:func:`.rules.passes_test`)
+    """
+
+    nominal_fit: Callable = fit_nominal
+    locate: Callable = locate_mismatch
+    signatures: Callable = compute_signatures
+    screen_around_nominal: Callable = screen_around_nominal
+    confirm_around_nominal: Callable = confirm_around_nominal
+    screen_from_data_sheet: Callable = screen_from_data_sheet
+    confirm_from_data_sheet: Callable = confirm_from_data_sheet
+    delay_scan: Callable = scan_kept_delay
+    findings: Callable = add_findings
+    other: Callable = other_finding
+    screen: Callable = screen
+    polished_costs: Callable = polished_costs
+    prefit: Callable = prefit_recording
+    refit: Callable = refit
+    fit: Callable = fit_from_data_sheet
+    keep_test: Callable = passes_test
+
+
+def _name(recording) -> str:
+    return Path(str(recording.source or "recording")).name
+
+
+def _load(recording, rig) -> tuple[Recording, Rig]:
+    if not isinstance(recording, Recording):
+        recording = read_recording(recording)
+    return recording, rig_of(recording, rig)
+
+
+def _check_input(recording: Recording, rig: Rig, validation_fraction: float) -> int:
+    """The estimation part's length; refuses (one sentence) a recording too short to diagnose, a validation
+    fraction out of range, or a validation part where the piston does not move."""
+    name = _name(recording)
+    n = recording.n_samples
+    if n < MIN_SAMPLES:
+        raise PneusimError(f"{name}: {n} samples are too short to diagnose (at least {MIN_SAMPLES}: the fit needs an "
+                           f"estimation part and a validation part it never sees)")
+    low, high = VALIDATION_FRACTION_RANGE
+    if not low <= validation_fraction <= high:
+        raise PneusimError(f"validation fraction must be in [{low:g}, {high:g}], got {validation_fraction}")
+    n_est = int(round(n * (1.0 - validation_fraction)))
+    noise = noise_levels(recording, rig)
+    y = recording.position_m[n_est:]
+    span = float(np.nanmax(y) - np.nanmin(y))
+    least = VALIDATION_MOTION_NOISE * noise["position_m"]
+    if not span > least:
+        raise PneusimError(f"{name}: the piston moves only {span * 1e3:.3f} mm in the validation window "
+                           f"{recording.time_s[n_est]:.2f}-{recording.time_s[-1]:.2f} s (at least "
+                           f"{least * 1e3:.3f} mm, {VALIDATION_MOTION_NOISE:g} times the sensor noise, are needed to "
+                           "score a model there)")
+    return n_est
+
+
+def _ranking(ranked: list, variants: dict) -> str:
+    return ", ".join(f"{k} ({variants[k][0]:.0f})" for k in ranked[:5])
+
+
+class Diagnosis:
+    """Diagnose what physics the nominal model leaves out of a recording (see :mod:`.estimator` for the steps).
+
+    The constructor only stores the options (see :func:`~pneusim.diagnosis.diagnose` for each); :meth:`fit`
+    diagnoses one recording.  ``stages`` (:class:`DiagnosisStages`) holds the stage callables.
+
+    Examples
+    --------
+    >>> result = Diagnosis(effects=["leakage"]).fit("run.csv")                       # doctest: +SKIP
+    >>> study = Diagnosis(stages=DiagnosisStages(keep_test=my_test)).fit("run.csv")   # doctest: +SKIP
+    """
+
+    def __init__(self, *, effects=None, validation_fraction: float = VALIDATION_FRACTION,
+                 max_refits: int = MAX_REFITS, max_lookalikes: int = MAX_LOOKALIKES, max_findings: int = MAX_FINDINGS,
+                 screen_samples: int | None = None, progress: bool = False,
+                 stages: DiagnosisStages = DiagnosisStages()):
+        self.effects, self.validation_fraction = effects, validation_fraction
+        self.max_refits, self.max_lookalikes, self.max_findings = max_refits, max_lookalikes, max_findings
+        self.screen_samples, self.progress, self.stages = screen_samples, progress, stages
+
+    def _say(self, name: str, message: str) -> None:
+        if self.progress:
+            print(f"diagnose: {name}: {message}", file=sys.stderr, flush=True)
+
+    @one_blas_thread
+    def fit(self, recording, rig=None) -> DiagnosisResult:
+        """Diagnose ``recording`` (a :class:`~pneusim.recording.Recording` or a path) on ``rig`` (default: the
+        recording's ``rig`` metadata); raises :class:`~pneusim.errors.PneusimError` like
+        :func:`~pneusim.diagnosis.diagnose`."""
+        started = time.perf_counter()
+        recording, rig = _load(recording, rig)
+        name = _name(recording)
+        candidate_list(rig, recording.sample_time_s, self.effects)   # an unknown effect is refused before any work
+        _check_input(recording, rig, self.validation_fraction)
+        nominal = self._nominal_fit(recording, rig, name)                                     # 1. nominal fit
+        t_nominal = time.perf_counter() - started
+        noise = noise_levels(recording, nominal.rig)
+        states = named_states(nominal)
+        windows, _ = self.stages.locate(recording, nominal.rig, states, noise)                # 2. locate
+        signatures = self.stages.signatures(recording, nominal.rig, states, states["velocity_m_per_s"])  # 3.
+        candidates = candidate_list(rig, recording.sample_time_s, self.effects,
+                                    screened_delays(signatures, recording.sample_time_s))
+        self._say(name, f"nominal validation fit {nominal.fit_percent:.2f} %, {len(windows)} mismatch window(s); "
+                        f"screening {len(candidates)} candidates")
+        run = self._run(recording, nominal, noise, name)
+        t_started = time.perf_counter()
+        route, ranked, variants, measure = self._screen(run, candidates, signatures)         # 4. screen
+        t_screen = time.perf_counter() - t_started
+        self._confirm(run, route, ranked, variants, measure)                                  # 5. confirm
+        self.stages.delay_scan(run)                                                           # 6. delay scan
+        kept = run.kept_by_fit()
+        findings, final = self.stages.findings(run, kept) if kept else ([], nominal)          # 7. findings
+        if not findings:                                                                      # 8. other
+            other = self.stages.other(nominal, noise, windows)
+            findings += [other] if other is not None else []
+        basis = run.baseline
+        result = DiagnosisResult(
+            recording=name, rig=nominal.rig.name,
+            validation={"t_start_s": float(recording.time_s[nominal.n_estimation]),
+                        "t_end_s": float(recording.time_s[-1])},
+            nominal={"fit_percent": basis.fit0, "parameters": nominal.estimates},
+            mismatch=windows, findings=findings, final_fit_percent=final.fit_percent,
+            candidates=[run.trials[k] for k in ranked],
+            test=keep_test_text(basis.floor, basis.fit0, validation_room(basis.fit0, basis.floor)),
+            seconds=time.perf_counter() - started,
+            timing={"nominal_fit_s": t_nominal, "screening_s": t_screen,
+                    "refits_s": time.perf_counter() - started - t_nominal - t_screen},
+            nominal_fit=nominal, final_fit=final, signatures=signatures,
+            fits={k: v[0] for k, v in run.refits.items()})
+        self._say(name, f"findings {', '.join(result.effects) or 'none'}; final fit {final.fit_percent:.2f} % "
+                        f"({result.seconds:.0f} s)")
+        return result
+
+    def _nominal_fit(self, recording, rig, name: str):
+        """1. The nominal fit (``stages.nominal_fit``); a recording it cannot start on is refused in one sentence."""
+        self._say(name, "nominal fit")
+        try:
+            return self.stages.nominal_fit(recording, rig, self.validation_fraction)
+        except PneusimError as exc:
+            raise FitError(f"{name}: the nominal fit failed on this recording: {exc}") from None
+
+    def _run(self, recording, nominal, noise: dict, name: str) -> DiagnosisRun:
+        """The run every later step reads and writes, with the nominal baseline the keep test compares with."""
+        cost0, n_res = estimation_cost(nominal, noise)
+        floor = noise_floor_points(recording, nominal.n_estimation, noise)
+        n_screen = (min(nominal.n_estimation, self.screen_samples or SCREEN_SAMPLES)
+                    * (3 if recording.has_pressures else 1))
+        basis = NominalBaseline(noise, cost0, n_res, nominal.fit_percent, floor, self.validation_fraction, nominal)
+        return DiagnosisRun(recording, nominal.rig, basis, self.stages, max_refits=self.max_refits,
+                            max_lookalikes=self.max_lookalikes, max_findings=self.max_findings,
+                            screen_samples=self.screen_samples, n_screen=n_screen,
+                            say=lambda message: self._say(name, message))
+
+    def _screen(self, run: DiagnosisRun, candidates: list, signatures: dict):
+        """4. Screen the candidates by the route the nominal fit calls for (:func:`.rules.screening_route`);
+        ``run.trials`` gets a trial per effect.  Returns ``(route, ranked, variants, measure)``, ``measure`` what
+        the confirmation needs (the nominal cost on the screening window, or the nominal pre-fit's residual on
+        the data sheet's window)."""
+        basis = run.baseline
+        room = validation_room(basis.fit0, basis.floor)
+        rms_ratio = math.sqrt(basis.cost0 / max(basis.n_residuals, 1))
+        route = screening_route(room, rms_ratio)
+        if route == "none":
+            run.say(f"the nominal validation error {100 - basis.fit0:.3g} points is within the keep test's reach of "
+                    f"the noise floor F = {basis.floor:.3g}: nothing can be found, no candidate is screened")
+            return route, [], {}, None
+        if route == "from the data sheet":
+            run.say(f"the nominal fit ends {rms_ratio:.3g} times above noise (more than {MODEL_SHORT:g}): every "
+                    "candidate is screened from the data sheet")
+            start = mismatch_window(basis.fit, run.recording, run.noise, WINDOW_SAMPLES)
+            run.trials, variants, ranked, window = self.stages.screen_from_data_sheet(run, candidates, signatures,
+                                                                                      start)
+            run.say("screening from the data sheet ranks " + _ranking(ranked, variants))
+            return route, ranked, variants, window.normalised_residual
+        run.trials, variants, ranked, base_cost = self.stages.screen_around_nominal(run, candidates, signatures)
+        run.say("screening ranks " + _ranking(ranked, variants))
+        return route, ranked, variants, base_cost
+
+    def _confirm(self, run: DiagnosisRun, route: str, ranked: list, variants: dict, measure) -> None:
+        """5. Confirm the leading candidates by whole fits, as the screening's route calls for."""
+        if route == "from the data sheet":
+            self.stages.confirm_from_data_sheet(run, ranked, variants, measure)
+        elif route == "around the nominal fit":
+            self.stages.confirm_around_nominal(run, ranked, variants, measure)

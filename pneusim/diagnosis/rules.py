@@ -1,0 +1,301 @@
+"""The diagnosis's rules: every threshold that decides what is screened, what is fitted, what is kept, in one place.
+
+Each rule is a named constant with its unit in parentheses and its reason in one line (``#:`` above it), so that
+the whole policy reads on one screen and a change to one rule is weighed against its siblings; the table of
+``docs/diagnosis.md`` ("Rules") is generated from these lines by :func:`table_markdown`.  The keep test
+(:func:`passes_test`, :func:`validation_room`, the information criterion and the noise floor ``F``) is written
+here too, as the rule it is.  The recordings that decided each rule are in the decision records
+(``docs/decisions/0027``-``0033``, and ``0077``-``0086``).
+
+Units: a *normalised* residual is the rms over the sensor noise std (1 at the noise level); a *cost* is a
+residual sum of squares in noise units; *points* are percentage points of MATLAB's fit % of the position on the
+validation part; ``F`` is the fit that white sensor noise alone takes away there (:func:`noise_floor_points`).
+"""
+
+from __future__ import annotations
+
+import ast
+import inspect
+import math
+
+import numpy as np
+
+from ..errors import PneusimError, SolverError
+from ..fit import rules as fit_rules
+
+__all__ = [
+    "MIN_SAMPLES", "VALIDATION_FRACTION", "VALIDATION_FRACTION_RANGE", "VALIDATION_MOTION_NOISE",
+    "FALSE_ALARM", "LOCATE_WINDOW_S", "LOCATE_WINDOW_SAMPLES", "MAX_WINDOWS",
+    "MODEL_SHORT", "MAX_REFITS", "MAX_LOOKALIKES", "MAX_FINDINGS",
+    "SCREEN_SAMPLES", "SCREEN_EVALUATIONS", "SCANNED_EVALUATIONS", "DEFECT_WEIGHT", "DELAY_LAG_FACTORS",
+    "DELAY_LAG_CORRELATION", "RELATIVE_SCORE", "MIN_EXPLAINED",
+    "WINDOW_SAMPLES", "PREFIT_EVALUATIONS", "AT_NOISE_ON_WINDOW", "WINDOW_SHOWS_MISMATCH", "MAX_FITS", "EXPLAINED",
+    "RIVAL_WINDOW", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS",
+    "MIN_IMPROVEMENT_POINTS", "ERROR_SHRINK", "CLEARLY_SHORT", "AT_NOISE", "PERFECT_ERROR",
+    "DELAY_SCAN_ERROR_RATIO", "SCAN_FACTOR", "SCAN_REFITS", "DELAY_GRID_PER_SAMPLE", "MIN_DELAY_SAMPLES",
+    "ON_TOP_REFITS", "OTHER_RESIDUAL", "SOLVER_FAILURES",
+    "bic_penalty", "information_gain", "noise_floor_points", "validation_room", "passes_test", "keep_test_text",
+    "screening_route", "is_solver_failure", "rules_table", "table_markdown",
+]
+
+# --------------------------------------------------------------------------------------------- the input
+#: (samples) a recording shorter than this cannot be split into estimation and validation parts worth fitting
+MIN_SAMPLES = 500
+#: (fraction of the recording) the final part kept for validation unless told otherwise: the fit's own default
+VALIDATION_FRACTION = fit_rules.DEFAULT_VALIDATION_FRACTION
+#: (fraction of the recording) the validation fractions accepted: enough to score a model, enough left to fit it
+VALIDATION_FRACTION_RANGE = (0.05, 0.5)
+#: (position-noise stds) the piston must move over at least this range in the validation part to score a model
+VALIDATION_MOTION_NOISE = 20
+
+# ------------------------------------------------------------------------------------------------ locate
+#: (probability) a recording explained up to noise flags a window with at most this probability (Bonferroni
+#: over the windows of the recording)
+FALSE_ALARM = 1e-3
+#: (s) the sliding window's length, unless told otherwise: long enough to average the noise of a few samples
+LOCATE_WINDOW_S = 0.1
+#: (samples) the sliding window is never shorter: a chi-square quantile of fewer degrees of freedom is too wide
+LOCATE_WINDOW_SAMPLES = 20
+#: (windows) at most this many mismatch windows are reported, the strongest
+MAX_WINDOWS = 50
+
+# ------------------------------------------------------------------------------ which screening, how many fits
+#: (normalised residual) the fit's own threshold (pneusim.fit.rules, one definition): a nominal fit ending more
+#: than this above noise has bent its parameters to make up for missing physics, so candidates are screened
+#: from the data sheet, not around it
+MODEL_SHORT = fit_rules.MODEL_SHORT
+#: (refits) leading candidates confirmed by a whole fit, one per look-alike family, unless told otherwise
+MAX_REFITS = 3
+#: (refits) look-alikes of each kept candidate (or of the leader) fitted in a second round, unless told otherwise
+MAX_LOOKALIKES = 2
+#: (effects) at most this many findings modelled together, unless told otherwise
+MAX_FINDINGS = 2
+
+# ---------------------------------------------------------------------------- near noise: around the nominal fit
+#: (samples) the screening's window: at most this many of the estimation part's first samples
+SCREEN_SAMPLES = 2500
+#: (trust-region evaluations) per screened candidate: a rank needs a few steps downhill, not an optimum
+SCREEN_EVALUATIONS = 6
+#: (trust-region evaluations) per candidate screened away from the nominal model (an effect's ``scanned``, or a
+#: start that moves nominal parameters): the nominal parameters need more steps to follow a moved response
+SCANNED_EVALUATIONS = 12
+#: (1) continuity weight of the screening problem and of every cost compared: the fit's penalty weight
+DEFECT_WEIGHT = fit_rules.PENALTY_WEIGHT
+#: (times the lag) transport delays screened around the lag of the command-residual cross-correlation
+DELAY_LAG_FACTORS = (0.6, 1.0, 1.6)
+#: (correlation) the lag points to a delay only where the cross-correlation's peak exceeds this in magnitude
+DELAY_LAG_CORRELATION = 0.1
+#: (fraction of the best score) a candidate is refitted only when its screening score is at least this ...
+RELATIVE_SCORE = 0.05
+#: (fraction of the cost) ... and it explains at least this fraction of the nominal cost on the screening window
+#: (also the least share a second effect must explain on top of the first finding to be refitted there)
+MIN_EXPLAINED = 0.01
+
+# ------------------------------------------------------------------------- far above noise: from the data sheet
+#: (samples) the window every candidate is pre-fitted on, where the nominal residual is largest: the fit's own
+#: pre-fit window
+WINDOW_SAMPLES = 2000
+#: (trust-region evaluations) of each pre-fit, direct route only: a rank needs no polish, and a wrong candidate
+#: may wander into stiff corners of its parameters
+PREFIT_EVALUATIONS = 40
+#: (normalised residual) a candidate whose pre-fit ends within this explains the window: only its look-alikes
+#: are pre-fitted after it
+AT_NOISE_ON_WINDOW = 1.2
+#: (times AT_NOISE_ON_WINDOW) the window shows the mismatch only where the nominal model's pre-fit ends above
+#: this: a window the nominal model explains says nothing
+WINDOW_SHOWS_MISMATCH = 2.0
+#: (whole fits) at most this many whole fits from the data sheet: each costs as much as a nominal fit
+MAX_FITS = 6
+#: (normalised residual) a kept candidate whose whole fit ends within this has explained the recording: the
+#: other families are not fitted
+EXPLAINED = 1.5
+#: (ratio of window rms) a candidate whose pre-fit ends more than this above the best kept one's is no rival for
+#: the first finding: not fitted whole, screened as a second effect on top of it
+RIVAL_WINDOW = 3.0
+#: (ratio of window rms) the first round fits effects without states first, except one whose pre-fit ends more
+#: than this above the round's best: it waits for the others
+DEFER_WINDOW = 5.0
+#: (ratio of window rms) a whole fit starts from its pre-fit's nominal values only where that pre-fit ended
+#: within this fraction of the nominal pre-fit's residual: else they are where its evaluations left them
+PREFIT_START = 0.5
+#: (starts) of a whole fit from the data sheet: the pre-fit on the window chose its start
+DATA_SHEET_FIT_STARTS = 1
+
+# -------------------------------------------------------------------------------------------- the keep test
+#: (points) a refit must raise the validation fit by more than max(this, F): less is within what a short
+#: validation window gives by chance
+MIN_IMPROVEMENT_POINTS = 0.5
+#: (fraction of the nominal validation error) a kept refit's validation error is at most this: at least 10 %
+#: smaller
+ERROR_SHRINK = 0.9
+#: (times F) a nominal validation error at least this is clearly short of the noise floor ...
+CLEARLY_SHORT = 2.0
+#: (times F) ... and a refit's at most this explains the held-out data down to noise: it passes by more than F
+AT_NOISE = 1.25
+#: (times F) below any validation error a model explaining everything but the noise reaches (the rms of
+#: N >= 1000 noise samples scatters by 1 / sqrt(2 N)): where no refit can pass, nothing is screened
+PERFECT_ERROR = 0.9
+
+# ---------------------------------------------------------------------------------- the transport delay's scan
+#: (ratio of validation errors) a kept delay is scanned with refits where it leads, or where its validation
+#: error is at most this many times the leader's: the scan moves a delay along its valley, not a look-alike's
+DELAY_SCAN_ERROR_RATIO = 3.0
+#: (ratio of delays) neighbouring delays of the refit scan
+SCAN_FACTOR = 1.5
+#: (refits) at most this many in the scan
+SCAN_REFITS = 8
+#: (grid steps per sample) delays are tried on a grid of a tenth of a sample: finer is below what a refit resolves
+DELAY_GRID_PER_SAMPLE = 10
+#: (samples) the least delay tried
+MIN_DELAY_SAMPLES = 0.5
+
+# --------------------------------------------------------------------------------------- findings and other
+#: (refits) at most this many kept candidates are refitted on top of the first finding, those that explain most
+#: there first: far from noise nearly every candidate passes the test against the nominal model alone
+ON_TOP_REFITS = 2
+#: (normalised residual) with nothing kept, a nominal residual above this (the residuals alone, not the
+#: continuity defects a penalty fit left open) in mismatch windows is reported as ``other``
+OTHER_RESIDUAL = 3.0
+
+
+# ---------------------------------------------------------------------------------- the keep test, as a rule
+def bic_penalty(k: int, n: int) -> float:
+    """The information criterion's price of ``k`` added parameters on ``n`` residuals: ``k ln n`` (BIC)."""
+    return k * math.log(n)
+
+
+def information_gain(cost0: float, cost1: float, n: int, k: int) -> float:
+    """The BIC's drop from cost ``cost0`` to ``cost1`` (``n`` residuals, ``k`` added parameters):
+    ``n ln(C0 / C1) - k ln n``; positive when the added parameters pay for themselves."""
+    return n * math.log(max(cost0, 1e-300) / max(cost1, 1e-300)) - bic_penalty(k, n)
+
+
+def noise_floor_points(recording, n_est: int, noise: dict) -> float:
+    """``F``: the fit percentage points that white sensor noise alone takes from a perfect model on the
+    validation part (samples ``n_est:``), ``100 sigma sqrt(N_val) / ||y - mean(y)||``."""
+    y = recording.position_m[n_est:]
+    den = float(np.linalg.norm(y - y.mean()))
+    return 100.0 * noise["position_m"] * math.sqrt(y.size) / den if den > 0 else float("inf")
+
+
+def validation_room(fit0: float, floor_points: float) -> float:
+    """How far the nominal validation error ``100 - fit0`` lies above the least error any refit could
+    reach and still pass :func:`passes_test`, in points (<= 0: no refit can pass).
+
+    A refit passes on the validation part only by more than ``max(0.5, F)`` points with an error of at
+    least :data:`PERFECT_ERROR` ``F`` (what white noise leaves a perfect model), or from an error of at
+    least :data:`CLEARLY_SHORT` ``F``; a nominal error below both says that nothing can be found, whatever
+    the estimation part shows."""
+    err0 = 100.0 - fit0
+    return err0 - min(max(MIN_IMPROVEMENT_POINTS, floor_points) + PERFECT_ERROR * floor_points,
+                      CLEARLY_SHORT * floor_points)
+
+
+def passes_test(cost0: float, cost1: float, n: int, k: int, fit0: float, fit1: float,
+                floor_points: float) -> tuple[bool, float, str]:
+    """The keep test: a refit (estimation cost ``cost1``, validation fit ``fit1`` %) is kept against the model
+    before it (``cost0``, ``fit0``) when both hold:
+
+    1. *estimation part*: the information criterion drops, ``n ln(C0 / C1) > k ln n``
+       (:func:`information_gain`; ``n`` residuals, ``k`` added parameters);
+    2. *validation part* (never fitted): the fit rises by more than ``max(0.5, F)`` points
+       (:data:`MIN_IMPROVEMENT_POINTS`, ``F`` = ``floor_points``) and the validation error shrinks to at most
+       :data:`ERROR_SHRINK` of its value; or, near the noise floor, it falls from at least :data:`CLEARLY_SHORT`
+       ``F`` to at most :data:`AT_NOISE` ``F``, by more than ``F`` (the model was clearly short on the held-out
+       data and the effect explains it down to noise).
+
+    Returns ``(kept, threshold_points, reason)``."""
+    bic_gain = information_gain(cost0, cost1, n, k)
+    threshold = max(MIN_IMPROVEMENT_POINTS, floor_points)
+    err0, err1 = 100.0 - fit0, 100.0 - fit1
+    if not (math.isfinite(fit1) and math.isfinite(cost1)):
+        return False, threshold, "refit failed to give a finite fit"
+    if bic_gain <= 0:
+        return False, threshold, f"estimation: BIC does not drop (N ln(C0/C1) - k ln N = {bic_gain:.1f})"
+    below_threshold = fit1 - fit0 <= threshold
+    to_noise = (err0 >= CLEARLY_SHORT * floor_points and err1 <= AT_NOISE * floor_points
+                and fit1 - fit0 > floor_points)
+    if below_threshold and not to_noise:
+        return False, threshold, (f"validation: +{fit1 - fit0:.2f} points, not above the noise threshold "
+                                  f"{threshold:.2f}")
+    if err1 > ERROR_SHRINK * err0:
+        return False, threshold, f"validation: error shrinks by less than {100 * (1 - ERROR_SHRINK):.0f} %"
+    if below_threshold:
+        return True, floor_points, (
+            f"BIC gain {bic_gain:.0f} on the estimation part; validation +{fit1 - fit0:.2f} points > F = "
+            f"{floor_points:.2f}, its error from {err0 / floor_points:.2f} F to {err1 / floor_points:.2f} F (down to "
+            "the noise floor)")
+    return True, threshold, (f"BIC gain {bic_gain:.0f} on the estimation part; validation +{fit1 - fit0:.2f} points "
+                             f"> {threshold:.2f}")
+
+
+def keep_test_text(floor_points: float, fit0: float, room: float) -> str:
+    """The keep test in words, with this recording's ``F`` (the result's ``test``)."""
+    text = ("keep a candidate when its refit lowers the BIC on the estimation part (N ln(C0/C1) > k ln N, C the "
+            "residual sum of squares in sensor-noise units) and raises the validation fit by more than "
+            f"max({MIN_IMPROVEMENT_POINTS:g}, F) = {max(MIN_IMPROVEMENT_POINTS, floor_points):.2f} points, "
+            f"F = {floor_points:.2f} the fit white sensor noise alone takes away (or by more than F where it takes a "
+            f"validation error of at least {CLEARLY_SHORT:g} F down to at most {AT_NOISE:g} F), with the validation "
+            f"error at least {100 * (1 - ERROR_SHRINK):.0f} % smaller")
+    if room <= 0:
+        text += (f"; the nominal validation error, {100 - fit0:.3g} points, is already within reach of the noise "
+                 f"floor (no refit can end below {PERFECT_ERROR:g} F), so no candidate was screened")
+    return text
+
+
+def screening_route(room_points: float, nominal_rms: float) -> str:
+    """Which screening a recording gets: ``"none"`` where no refit could pass the keep test on the validation
+    part (:func:`validation_room` <= 0); ``"from the data sheet"`` where the nominal fit's normalised residual on
+    its estimation part is above :data:`MODEL_SHORT`; else ``"around the nominal fit"``."""
+    if room_points <= 0:
+        return "none"
+    if nominal_rms > MODEL_SHORT:
+        return "from the data sheet"
+    return "around the nominal fit"
+
+
+#: (exceptions) a fit or a screening that raises one of these failed on the recording: it is reported in the
+#: result with its error and the diagnosis goes on; any other exception is a bug and is raised
+SOLVER_FAILURES = (PneusimError, SolverError, FloatingPointError, np.linalg.LinAlgError, ValueError, RuntimeError,
+                   ArithmeticError)
+
+
+def is_solver_failure(exc: Exception) -> bool:
+    """Whether ``exc`` is a fit's failure on the recording (:data:`SOLVER_FAILURES`), reported and not raised."""
+    return isinstance(exc, SOLVER_FAILURES)
+
+
+# ------------------------------------------------------------------------------------------- the rules table
+def rules_table() -> list[tuple[str, str, str, str]]:
+    """``[(name, value, unit, reason)]`` of every rule, in the order of this module, read from its ``#:`` lines."""
+    source = inspect.getsource(inspect.getmodule(rules_table))
+    lines = source.splitlines()
+    rows = []
+    for node in ast.parse(source).body:
+        if not (isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name)):
+            continue
+        name = node.targets[0].id
+        if name not in __all__:
+            continue
+        comment, k = [], node.lineno - 2
+        while k >= 0 and lines[k].startswith("#: "):
+            comment.insert(0, lines[k][3:].strip())
+            k -= 1
+        text = " ".join(comment)
+        unit, _, reason = text[1:].partition(") ") if text.startswith("(") else ("", "", text)
+        rows.append((name, _value_text(globals()[name]), unit, reason))
+    return rows
+
+
+def _value_text(value) -> str:
+    if isinstance(value, tuple) and value and all(isinstance(v, type) for v in value):
+        return ", ".join(v.__name__ for v in value)
+    return repr(value)
+
+
+def table_markdown() -> str:
+    """The rules as the Markdown table of ``docs/diagnosis.md``'s section "Rules"."""
+    lines = ["| rule | value | unit | why |", "|---|---|---|---|"]
+    for name, value, unit, reason in rules_table():
+        lines.append(f"| `{name}` | {value} | {unit} | {reason.replace('|', '/')} |")
+    return "\n".join(lines)

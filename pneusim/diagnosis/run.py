@@ -1,0 +1,84 @@
+"""One recording's diagnosis as it goes: what every step reads and writes.
+
+A step of :class:`~.estimator.Diagnosis` takes a :class:`DiagnosisRun`: the recording and the rig, the nominal
+baseline every refit is compared with (:class:`NominalBaseline`), the options, the stages it calls
+(:class:`~.estimator.DiagnosisStages`: the fits, the screenings, the keep test) and the progress line; and it
+records its outcome there: a :class:`~.result.CandidateTrial` per effect (``trials``), the kept and rejected
+refits (``refits``, ``{effect: (fit, candidate)}``), and the candidates left to the screening on top of the
+first finding (``second_only``, ``{effect: candidate}``).  A test builds one with stand-in stages and runs one
+step alone.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, NamedTuple
+
+from .rules import MAX_FINDINGS, MAX_LOOKALIKES, MAX_REFITS
+
+__all__ = ["NominalBaseline", "DiagnosisRun"]
+
+
+class NominalBaseline(NamedTuple):
+    """What the keep test compares a refit with: the sensor noise, the nominal fit's estimation
+    residual sum of squares and residual count, its validation fit %, the noise floor in points; and
+    the nominal fit itself (a refit ending above it is retried from there)."""
+
+    noise: dict
+    cost0: float
+    n_residuals: int
+    fit0: float
+    floor: float
+    validation_fraction: float
+    fit: object = None
+
+
+def _silent(message: str) -> None:
+    """No progress line."""
+
+
+@dataclass
+class DiagnosisRun:
+    """One recording's diagnosis as it goes (see the module docstring).
+
+    Attributes
+    ----------
+    recording, rig
+        The recording and the rig the nominal fit used.
+    baseline : NominalBaseline
+    stages : DiagnosisStages
+        The callables the steps use (:class:`~.estimator.DiagnosisStages`).
+    max_refits, max_lookalikes, max_findings : int
+        The options of :class:`~.estimator.Diagnosis`.
+    screen_samples : int or None
+        Estimation samples the screening uses (None: :data:`~.rules.SCREEN_SAMPLES`).
+    n_screen : int
+        Residuals of the screening window (the ``ln N`` of a screening score).
+    say : callable
+        ``say(message)``: one progress line.
+    trials, refits, second_only : dict
+        What the steps found (see the module docstring).
+    """
+
+    recording: object
+    rig: object
+    baseline: NominalBaseline
+    stages: object
+    max_refits: int = MAX_REFITS
+    max_lookalikes: int = MAX_LOOKALIKES
+    max_findings: int = MAX_FINDINGS
+    screen_samples: int | None = None
+    n_screen: int = 0
+    say: Callable = _silent
+    trials: dict = field(default_factory=dict)
+    refits: dict = field(default_factory=dict)
+    second_only: dict = field(default_factory=dict)
+
+    @property
+    def noise(self) -> dict:
+        """Sensor noise std per measured signal (the baseline's)."""
+        return self.baseline.noise
+
+    def kept_by_fit(self) -> list[str]:
+        """The kept effects, best validation fit first."""
+        return sorted((k for k in self.refits if self.trials[k].kept), key=lambda k: -self.refits[k][0].fit_percent)
