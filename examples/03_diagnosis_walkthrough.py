@@ -32,12 +32,12 @@ import dataclasses
 import json
 from pathlib import Path
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from pneusim.diagnosis.locate import locate_mismatch, velocity_estimate
 from pneusim.diagnosis.signatures import compute_signatures
 from pneusim.fit import fit_recording
+from pneusim.plotting import COLOURS, new_figure, show_figure
 from pneusim.recording import read_recording, summarize
 from pneusim.rig import load_rig
 
@@ -93,17 +93,18 @@ X[nominal.n_estimation:] = nominal.validation["states"]
 states = {name: X[:, i] for i, name in enumerate(nominal.model.state_names)}
 resid_mm = 1e3 * (rec.position_m - states["position_m"])
 noise_mm = 1e3 * rig["position_noise_std_m"]
-fig, ax = plt.subplots(2, 1, sharex=True, figsize=(8, 4))
-ax[0].plot(rec.time_s, 1e3 * rec.position_m, "k", lw=1, label="measured")
-ax[0].plot(rec.time_s, 1e3 * states["position_m"], lw=0.8, ls="--", label="nominal model")
+fig, ax = new_figure(2, 1, title="The nominal model against the recording: its residual (below) leaves the sensor "
+                                 "noise band (grey, 3 sigma)", size=(9, 4.6), sharex=True)
+ax[0].plot(rec.time_s, 1e3 * rec.position_m, color=COLOURS["measured"], lw=1, label="measured")
+ax[0].plot(rec.time_s, 1e3 * states["position_m"], color=COLOURS["nominal"], lw=0.8, ls="--", label="nominal model")
 ax[0].axvline(rec.time_s[nominal.n_estimation], color="k", ls=":")
 ax[0].set_ylabel("position (mm)")
 ax[0].legend(fontsize=8)
-ax[1].plot(rec.time_s, resid_mm, lw=0.6)
-ax[1].axhspan(-3 * noise_mm, 3 * noise_mm, color="0.85")
+ax[1].plot(rec.time_s, resid_mm, color=COLOURS["nominal"], lw=0.6)
+ax[1].axhspan(-3 * noise_mm, 3 * noise_mm, color=COLOURS["noise"])
 ax[1].set_ylabel("residual (mm)")
 ax[1].set_xlabel("time (s)")
-plt.show()
+show_figure(fig)
 print(f"residual rms {np.sqrt(np.nanmean(resid_mm ** 2)):.3g} mm against a sensor noise of {noise_mm:.3g} mm")
 
 # %% [markdown]
@@ -129,18 +130,18 @@ print(f"{len(windows)} window(s)")
 v_meas = velocity_estimate(rec.time_s, rec.position_m)
 v_model = states["velocity_m_per_s"]
 du = rec.valve_cmd_V - rig["valve_null_V"]
-fig, ax = plt.subplots(1, 2, figsize=(9, 3.5))
-ax[0].plot(1e3 * v_meas, resid_mm, ".", ms=2, alpha=0.4)
+fig, ax = new_figure(1, 2, title="Signatures: the residual against the measured velocity (left), the velocity "
+                                 "against the valve command (right)", size=(9, 3.8))
+ax[0].plot(1e3 * v_meas, resid_mm, ".", ms=2, alpha=0.4, color=COLOURS["nominal"])
 ax[0].set_xlabel("measured velocity (mm/s)")
 ax[0].set_ylabel("position residual (mm)")
-ax[1].plot(du, 1e3 * v_meas, ".", ms=2, alpha=0.4, label="measured")
-ax[1].plot(du, 1e3 * v_model, ".", ms=2, alpha=0.4, label="nominal model")
+ax[1].plot(du, 1e3 * v_meas, ".", ms=2, alpha=0.4, color=COLOURS["measured"], label="measured")
+ax[1].plot(du, 1e3 * v_model, ".", ms=2, alpha=0.4, color=COLOURS["nominal"], label="nominal model")
 ax[1].set_xlim(-1.5, 1.5)
 ax[1].set_xlabel("valve command - null (V)")
 ax[1].set_ylabel("piston velocity (mm/s)")
 ax[1].legend(fontsize=8, markerscale=4)
-fig.tight_layout()
-plt.show()
+show_figure(fig)
 moving = np.abs(v_meas) > 2e-3
 r_dir = np.corrcoef(np.sign(v_meas[moving]), resid_mm[moving])[0, 1]
 print(f"correlation of the residual with the direction of motion: r = {r_dir:.2f}")

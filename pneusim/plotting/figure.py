@@ -19,6 +19,8 @@ __all__ = ["pyplot", "new_figure", "finish_figure", "save_figure", "show_figure"
 DPI = 110
 #: font sizes (points): the figure's title, a panel's title, legend entries
 TITLE_SIZE, PANEL_TITLE_SIZE, LEGEND_SIZE = 11, 9, 8
+#: the share of the figure's width a line of the title may take
+TITLE_ROOM = 0.9
 
 _HOOKS: list = []
 
@@ -59,19 +61,22 @@ def figure_hook(hook):
 
 
 def _wrap_title(fig) -> None:
-    """Break the figure's title into lines that fit its width (a long title would be cut at the edges)."""
+    """Break the figure's title into lines that fit its width (a long title would be cut at the edges); the
+    lines keep a margin, as text drawn at another resolution (``savefig(dpi=...)``) is not exactly as wide."""
     import textwrap
 
     title = fig.get_suptitle()
     if not title:
         return
-    fig.draw_without_rendering()
-    text = fig._suptitle
-    width = text.get_window_extent(fig.canvas.get_renderer()).width
-    room = 0.97 * fig.bbox.width
-    if width > room:
-        chars = max(20, int(len(title.replace("\n", " ")) * room / width))
-        text.set_text(textwrap.fill(title.replace("\n", " "), chars))
+    text = " ".join(title.split())
+    room = TITLE_ROOM * fig.bbox.width
+    renderer = fig.canvas.get_renderer()
+    chars = len(text)
+    while chars > 20:
+        fig._suptitle.set_text(textwrap.fill(text, chars) if chars < len(text) else text)
+        if fig._suptitle.get_window_extent(renderer).width <= room:
+            return
+        chars = int(chars * 0.9)
 
 
 def finish_figure(fig):

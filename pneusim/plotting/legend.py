@@ -15,12 +15,15 @@ import weakref
 
 import numpy as np
 
-__all__ = ["LEGEND_MAX_SHARE", "PLACES", "data_series", "covered_share", "place_legends", "keep_in_place"]
+__all__ = ["LEGEND_MAX_SHARE", "LEGEND_PAD_PX", "PLACES", "data_series", "covered_share", "place_legends", "keep_in_place"]
 
 #: the largest share of any one series' points a legend may cover (2 %: a corner legend over the tail of
 #: a curve passes, a legend across a curve's middle does not)
 LEGEND_MAX_SHARE = 0.02
 #: where a legend may go inside its axes, in the order tried (the first of equal coverage wins)
+#: a point this close to a legend's frame counts as covered, pixels (half a marker's width: a marker centred
+#: just outside the frame is still partly under it)
+LEGEND_PAD_PX = 4.0
 PLACES = ("upper right", "upper left", "lower right", "lower left", "center right", "center left",
           "upper center", "lower center")
 
@@ -84,7 +87,8 @@ def data_series(ax) -> list[tuple[str, str, np.ndarray]]:
 
 def covered_share(series, extent) -> list[tuple[str, float]]:
     """``[(label, share)]``: the share of each series' points (or bars) under the rectangle ``extent`` (a
-    matplotlib ``Bbox`` in display coordinates)."""
+    matplotlib ``Bbox`` in display coordinates), widened by :data:`LEGEND_PAD_PX`."""
+    extent = extent.padded(LEGEND_PAD_PX)
     shares = []
     for label, kind, arr in series:
         if kind == "points":

@@ -40,7 +40,7 @@ COLOURS = {
     "window": "#FDD49E",
 }
 #: recursive least squares by model order: lighter to darker green
-RLS_ORDER_COLOURS = {1: "#C7E9C0", 2: "#A1D99B", 3: "#74C476", 4: "#31A354", 5: "#006D2C", 6: "#00441B"}
+RLS_ORDER_COLOURS = {1: "#C7E9C0", 2: "#A1D99B", 3: "#74C476", 4: "#238B45", 5: "#00441B", 6: "#002A10"}
 
 #: the atmosphere a gauge pressure is read against when the rig gives none, Pa (ISO 2533 sea level)
 STANDARD_ATMOSPHERE_PA = 101325.0
