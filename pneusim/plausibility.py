@@ -21,9 +21,9 @@ from .errors import InputFileError, PneusimError
 from .recording import POSITION_MARGIN, PRESSURE_COLUMNS, Recording
 from .rig import Rig, known_rig_names, load_rig
 
-__all__ = ["check_plausible", "check_sample_time", "recording_rig", "rig_file_sha256", "end_stop_time",
-           "end_stop_text", "COMMAND_MARGIN", "PRESSURE_LOW_MARGIN", "PRESSURE_HIGH_MARGIN", "END_STOP_BAND",
-           "SAMPLE_TIME_RTOL"]
+__all__ = ["check_plausible", "check_sample_time", "recording_rig", "rig_file_sha256", "noise_scale_limit",
+           "check_noise_scale", "end_stop_time", "end_stop_text", "COMMAND_MARGIN", "PRESSURE_LOW_MARGIN",
+           "PRESSURE_HIGH_MARGIN", "END_STOP_BAND", "SAMPLE_TIME_RTOL", "NOISE_SIGMAS"]
 
 #: a command may exceed the valve's range by this fraction of the range (rounding of a DAQ)
 COMMAND_MARGIN = 0.01
@@ -36,6 +36,37 @@ PRESSURE_HIGH_MARGIN = 0.1
 END_STOP_BAND = 0.005
 #: sample times closer than this (relative) are the same sample time (a decimal written in a file)
 SAMPLE_TIME_RTOL = 1e-9
+#: a scaled sensor noise must keep this many standard deviations between a reading and the end of what the
+#: format can hold (an absolute pressure of 0; the stroke's margin for a position no converter clips)
+NOISE_SIGMAS = 5.0
+
+
+def noise_scale_limit(rig) -> float:
+    """The largest noise scale whose sensor noise leaves readings the recording format can hold.
+
+    A chamber at atmosphere (or exhaust) read with noise of ``scale * pressure_noise_std_Pa`` falls below
+    vacuum, and the recording is refused, once :data:`NOISE_SIGMAS` standard deviations reach the lower of
+    the two pressures; a position no converter clips (``position_adc_bits = 0``) leaves the stroke's
+    margin the same way.  ``inf`` for ideal sensors.
+    """
+    p = rig.params
+    limits = [math.inf]
+    if p["pressure_noise_std_Pa"] > 0:
+        limits.append(min(p["atmosphere_Pa"], p["exhaust_Pa"]) / (NOISE_SIGMAS * p["pressure_noise_std_Pa"]))
+    if p["position_noise_std_m"] > 0 and int(p["position_adc_bits"]) <= 0:
+        limits.append(POSITION_MARGIN * rig.stroke_m / (NOISE_SIGMAS * p["position_noise_std_m"]))
+    return min(limits)
+
+
+def check_noise_scale(rig, noise_scale: float, what: str) -> None:
+    """Refuse a noise scale above :func:`noise_scale_limit` in one sentence naming ``what`` (the option or
+    the file and key that set it)."""
+    limit = noise_scale_limit(rig)
+    if not noise_scale <= limit:
+        raise PneusimError(f"{what} = {noise_scale:g}: expected at most {limit:.4g} for rig {rig.name}; beyond it "
+                           f"the sensor noise ({rig.params['pressure_noise_std_Pa']:g} Pa times the scale) puts "
+                           f"readings {NOISE_SIGMAS:g} standard deviations past what a recording can hold (an "
+                           "absolute pressure of 0), and the recording would be refused")
 
 
 def rig_file_sha256(path) -> str:

@@ -400,6 +400,10 @@ def _parse_cells(cells: list[str], name: str, required: bool, place: _Place) -> 
     return values
 
 
+#: metadata a .mat file holds as numbers (one value each), not as columns
+_NUMERIC_META = ("sample_time_s", "seed", "noise_scale") + CONTROLLER_KEYS
+
+
 def _parse_mat(path: Path):
     import scipy.io
 
@@ -416,14 +420,21 @@ def _parse_mat(path: Path):
         if name.startswith("__"):
             continue
         value = np.asarray(value)
+        shape = "x".join(map(str, value.shape))
         if value.dtype.kind == "U" and name not in SIGNALS:
             if value.size > 1:
                 place.fail("expected a one-line char array", name)
             meta[name] = str(value.reshape(-1)[0]) if value.size else ""
-        elif value.dtype.kind in "biuf" and value.size:
+        elif value.dtype.kind in "biuf" and not value.size:
+            place.fail(f"is empty (a {shape} array); expected "
+                       + ("a column vector of the samples" if name in SIGNALS or name not in _NUMERIC_META
+                          else "a single number"), name)
+        elif value.dtype.kind in "biuf":
             if value.ndim > 2 or (value.ndim == 2 and 1 not in value.shape):
-                place.fail(f"expected a column vector, got a {'x'.join(map(str, value.shape))} array", name)
+                place.fail(f"expected a column vector, got a {shape} array", name)
             flat = value.reshape(-1).astype(float)
+            if name in _NUMERIC_META and flat.size != 1:
+                place.fail(f"expected a single number (a 1x1 value), got a {shape} array", name)
             if name in SIGNALS or flat.size != 1:
                 cols[name] = flat
             elif not math.isfinite(flat[0]):

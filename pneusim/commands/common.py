@@ -194,10 +194,10 @@ def _metadata_number(meta, key: str, path: str, whole: bool):
     if text is None:
         return None
     try:
-        value = int(text) if whole else float(text)
+        value = float(text)
     except ValueError:
         value = math.nan
-    if not (math.isfinite(value) and value >= 0 and (not whole or value <= 2**32 - 1)):
+    if not (math.isfinite(value) and value >= 0 and (not whole or (value.is_integer() and value <= 2**32 - 1))):
         expected = "a whole number >= 0 (a seed)" if whole else "a finite number >= 0"
         raise PneusimError(f"{path}: metadata '{key}: {text}': expected {expected}")
-    return value
+    return int(value) if whole else value

@@ -100,6 +100,9 @@ def run(args, run_mre=run_mre) -> int:
             print(f"plant {key}: {value}")
     for name, mdl in s["identified"].items():
         print(f"{name}: {mdl['transfer_function']}")
+        if not mdl.get("finite", True):
+            print(f"pneusim mre: warning: {name}: the estimate is not finite (the recursion diverged); this "
+                  "transfer function says nothing about the plant", file=sys.stderr)
     print(f"written: {out / 'recording.csv'}, summary.json, coefficients.npz"
           + ("" if args.no_report else ", report.md"))
     if s["stop_reason"] in (STOP_INTERRUPTED, STOP_TERMINATED):
@@ -110,4 +113,6 @@ def run(args, run_mre=run_mre) -> int:
         short = " (fewer than 50: too short for pneusim check)" if s["samples"] < 50 else ""
         raise PneusimError(f"the run stopped early ({s['stop_reason']}: {s['error']}); the valve was sent to its "
                            f"null and the {s['samples']} samples taken are in {out / 'recording.csv'}{short}")
+    if s.get("recording_check"):
+        raise PneusimError(f"the run completed, but pneusim check refuses its recording: {s['recording_check']}")
     return 0

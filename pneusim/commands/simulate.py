@@ -7,7 +7,7 @@ import sys
 
 from ..errors import PneusimError
 from ..experiment import INPUT_KINDS, standard_experiment
-from ..plausibility import end_stop_text
+from ..plausibility import check_noise_scale, end_stop_text
 from ..plots import plot_recording
 from ..recording import MIN_SAMPLES, read_recording, write_recording
 from ..simulate import rerun_recording, rig_effects, simulate
@@ -68,6 +68,8 @@ def run(args) -> int:
         seed = args.seed if args.seed is not None else (made["seed"] if made["seed"] is not None else 0)
         noise = args.noise_scale if args.noise_scale is not None else (
             made["noise_scale"] if made["noise_scale"] is not None else 1.0)
+        check_noise_scale(rig, noise, "--noise-scale" if args.noise_scale is not None
+                          else f"{args.like}: metadata noise_scale")
         if args.duration is not None:
             span = recording.n_samples * recording.sample_time_s
             n = int(round(args.duration / recording.sample_time_s))
@@ -90,6 +92,7 @@ def run(args) -> int:
         duration = args.duration if args.duration is not None else (80.0 if rig.name == "paper2-enfield" else 20.0)
         seed = args.seed if args.seed is not None else 0
         noise = args.noise_scale if args.noise_scale is not None else 1.0
+        check_noise_scale(rig, noise, "--noise-scale")
         exp = standard_experiment(rig, args.input, duration, args.loop or "closed", seed=seed)
         sim = simulate(rig, exp, effects, seed=seed, noise_scale=noise,
                        record_pressures=not args.no_pressures, backend=args.backend, progress=True)

@@ -124,7 +124,7 @@ def read_friction_test(path, bore_m: float | None = None) -> FrictionTest:
     if not (math.isfinite(bore_m) and 0.0 < bore_m < 1.0):
         raise InputFileError(f"bore must be in (0, 1) m, got {bore_m}", path=path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")    # a byte order mark before the header, as recordings allow
     except UnicodeDecodeError as exc:
         raise InputFileError(f"not UTF-8 text (byte offset {exc.start}); expected a CSV file", path=path) from None
     data = _parse(path, text)

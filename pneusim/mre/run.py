@@ -24,7 +24,8 @@ from ..loop import LoopResult, StatusLine, make_pacing, row_columns, run_loop, t
 from ..metrics import error_stats
 from ..outputs import atomic_path, write_json_atomic
 from ..plant import SimulatedPlant
-from ..recording import read_recording
+from ..plausibility import check_plausible
+from ..recording import MIN_SAMPLES, read_recording
 from ..version import __version__
 from .daq import DaqPlant
 from .plants import ReplayPlant, parse_plant
@@ -65,8 +66,11 @@ def make_plant(choice, rig, effects, *, seed: int, noise_scale: float, mode: str
     if choice.kind == "replay":
         rec = read_recording(choice.path)
         if not math.isclose(rec.sample_time_s, rig.sample_time_s, rel_tol=1e-9):
-            raise PneusimError(f"--plant replay:{choice.path}: the recording's sample time {rec.sample_time_s:g} s "
-                               f"differs from the rig's {rig.sample_time_s:g} s")
+            made = f" (rig {rec.rig})" if rec.rig else ""
+            raise PneusimError(f"--plant replay:{choice.path}: the recording{made} was sampled every "
+                               f"{rec.sample_time_s:g} s, the MRE file's rig {rig.name} every {rig.sample_time_s:g} s; "
+                               f"replay a recording of {rig.name} (e.g. pneusim simulate --rig {rig.name} --input "
+                               f"steps --loop open --out {rig.name}-run.csv) or use an MRE file of its rig")
         return ReplayPlant(rec)
     if choice.kind == "udp":
         timeout = udp_reply_timeout_s
@@ -119,6 +123,7 @@ def run_mre(spec: dict, out_dir, *, plant: str | None = None, mode: str | None =
     res = _run_recorded(pl, comp, m, pacing, scope, rec_path, meta, row_columns(comp.controller is not None, pred_cols),
                         status, stop_after)
     summary = _summary(spec, res, comp, choice, pl, mode, rec_path, pred_keys, pred_cols)
+    summary["recording_check"] = recording_check(rec_path, comp.rig) if res.n_samples >= MIN_SAMPLES else None
     summary["realtime_os"] = {"applied": scope.describe() if pacing.realtime else "none (fast mode)",
                               "notices": list(scope.notices)}
     _write_results(out, res, summary)
@@ -126,6 +131,17 @@ def run_mre(spec: dict, out_dir, *, plant: str | None = None, mode: str | None =
     if report and res.n_samples >= 2:
         write_report(run, comp, spec)
     return run
+
+
+def recording_check(path: Path, rig) -> str | None:
+    """What ``pneusim check`` would say against the run's recording (None: valid and plausible for ``rig``):
+    a run must not end as if all were well with a recording its own check refuses (too much sensor noise,
+    a sensor fault on a real rig)."""
+    try:
+        check_plausible(read_recording(path), rig)
+    except PneusimError as exc:
+        return str(exc)
+    return None
 
 
 def _check_replay_length(plant, choice, comp: Components) -> None:
@@ -224,7 +240,7 @@ def identified_models(result: LoopResult, estimators: dict) -> dict:
         n = theta.size // 2
         a, b = theta[:n], theta[n:]
         out[name] = {"order": n, "a": a.tolist(), "b": b.tolist(), "theta": theta.tolist(),
-                     "transfer_function": transfer_function_text(a, b)}
+                     "transfer_function": transfer_function_text(a, b), "finite": bool(np.isfinite(theta).all())}
     return out
 
 

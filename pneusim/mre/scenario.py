@@ -13,7 +13,12 @@ An MRE file is TOML (schema below and in the README section "Mixed-reality envir
     [[identifiers]] name, kind = "rls" (paper 1 eq. 8) | "recursive_arx" (sysid.RecursiveARX),
                  order, forgetting, initial_covariance, horizons
 
-Every mistake is refused with one line naming the file, the key and what was expected.
+Every mistake is refused with one line naming the file, the key and what was expected; what needs the
+rig is checked when the components are built (:func:`build_components`), before the loop starts: the
+start position within the stroke, a noise scale the recording can hold, prediction horizons within the
+run, and each identifier's forgetting factor and initial covariance against the signals it will see
+(:func:`sysid.check_rls_options`: settings that cannot give an estimate, e.g. ``forgetting = 1e-300`` or
+``initial_covariance = 1e308``, would end in ``G(z) = (nan ...)``).
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from ..controller import PIDController, ProportionalController
 from ..errors import InputFileError, PneusimError
 from ..experiment import MAX_SAMPLES
 from ..online import PaperRLS, SysidRLS
+from ..plausibility import check_noise_scale
 from ..rig import load_rig
 from ..signals import OUTPUT_UNITS, build_signal, output_scale, sensor_gain, validate_signal
 from ..simulate import merged_effects
@@ -38,7 +44,7 @@ from .daq import daq_config
 from .plants import PLANT_KINDS, parse_plant
 
 __all__ = ["load_mre", "validate_mre", "MRE_MODES", "Components", "build_components", "build_controller",
-           "build_reference", "build_estimators"]
+           "build_reference", "build_estimators", "check_identifiers"]
 
 MRE_MODES = ("fast", "realtime")
 _NUM = (int, float)
@@ -121,6 +127,7 @@ def validate_mre(data: dict, where: str = "MRE file") -> dict:
     if d["output_unit"] not in OUTPUT_UNITS:
         fail(where, "data.output_unit", f"expected one of {', '.join(OUTPUT_UNITS)}, got {d['output_unit']!r}")
     out["identifiers"] = _checked_identifiers(where, data.get("identifiers", []))
+    out["source"] = where
     return out
 
 
@@ -272,9 +279,17 @@ def build_components(spec: dict, duration_s: float | None = None) -> Components:
     unit = d["output_unit"]
     scale = output_scale(rig, unit)
     y_off, u_off = float(d["output_offset"]), float(d["input_offset"])
+    where = spec.get("source", "MRE file")
     x0 = m["initial_position_m"]
     if x0 is None:
         x0 = float(np.clip(ref[0], 0.0, rig.stroke_m)) if closed else 0.5 * rig.stroke_m
+    elif not 0.0 <= x0 <= rig.stroke_m:
+        fail(where, "mre.initial_position_m", f"expected a position in [0, {rig.stroke_m:g}] m (the stroke of "
+                                              f"{rig.name}), got {x0!r}")
+    try:
+        check_noise_scale(rig, float(m["noise_scale"]), "mre.noise_scale")
+    except PneusimError as exc:
+        fail(where, "mre.noise_scale", str(exc).partition(": ")[2])
     if not float(m["warmup_s"]) / ts <= MAX_SAMPLES + 0.5:
         raise PneusimError(f"mre.warmup_s = {m['warmup_s']:g} s gives {m['warmup_s'] / ts:.4g} samples at {ts:g} s; "
                            f"at most {MAX_SAMPLES} ({MAX_SAMPLES * ts:g} s)")
@@ -282,5 +297,31 @@ def build_components(spec: dict, duration_s: float | None = None) -> Components:
     u_init = ctrl.command(-n_warm * ts, ref[0], x0) if closed else float(ref[0])
     if closed:
         ctrl.reset()
+    y_max = max(abs(0.0 * scale - y_off), abs(rig.stroke_m * scale - y_off))
+    u_range = [rig.params["valve_min_V"], rig.params["valve_max_V"]] + ([] if closed else [float(np.min(ref)),
+                                                                                         float(np.max(ref))])
+    u_max = max(abs(u - u_off) for u in u_range)
+    check_identifiers(where, spec["identifiers"], n, y_max, u_max)
     return Components(rig, effects, ref, ctrl, build_estimators(spec["identifiers"]),
                       lambda p: p * scale - y_off, lambda u, k: u - u_off, n_warm, float(x0), float(u_init), unit)
+
+
+def check_identifiers(where: str, idents: list[dict], n_samples: int, max_abs_y: float, max_abs_u: float) -> None:
+    """Each identifier's settings against the run: horizons within its ``n_samples`` samples, and its forgetting
+    factor and initial covariance against signals up to ``max_abs_y`` and ``max_abs_u`` (identifier units), by
+    :func:`sysid.check_rls_options` -- the checks of :class:`sysid.RecursiveARX`, the same recursion."""
+    import sysid   # about a second (SciPy's signal module): the components are built once, before the loop
+
+    for i, it in enumerate(idents):
+        prefix = f"identifiers[{i}]"
+        too_long = [h for h in it["horizons"] if h >= n_samples]
+        if too_long:
+            fail(where, f"{prefix}.horizons", f"expected horizons shorter than the run's {n_samples} samples, got "
+                                              f"{too_long[0]} (no prediction that far ahead would be scored)")
+        try:
+            sysid.check_rls_options([it["order"], it["order"], 1], it["forgetting"], it["initial_covariance"],
+                                    max_abs_y=max_abs_y, max_abs_u=max_abs_u)
+        except sysid.SysidError as exc:
+            text = str(exc)
+            key = next((k for k in ("forgetting", "initial_covariance") if text.startswith(k)), None)
+            fail(where, f"{prefix}.{key}" if key else prefix, text.rstrip("."))

@@ -3,8 +3,10 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
+from pneusim.errors import InputFileError
 from pneusim.recording import read_recording
 
 from recording_cases import CLOSED_META, COLUMNS, N, table, csv_text, row_line, refused, meta_without, meta_with
@@ -211,3 +213,28 @@ def test_not_utf8(write):
 
 def test_empty_file(write):
     refused(write(""))
+
+
+def _mat(tmp_path, **overrides):
+    import scipy.io
+
+    n = 60
+    data = {"format": "pneusim-recording/1", "sample_time_s": 0.01, "rig": "paper2-enfield", "loop": "open",
+            "time_s": np.arange(n) * 0.01, "valve_cmd_V": np.full(n, 5.0), "position_m": np.full(n, 0.1)}
+    data.update(overrides)
+    path = tmp_path / "r.mat"
+    scipy.io.savemat(path, {k: v for k, v in data.items() if v is not None}, oned_as="column")
+    return path
+
+
+@pytest.mark.parametrize("overrides, field, words", [
+    ({"sample_time_s": np.array([[0.01, 0.01]])}, "sample_time_s", "a single number"),
+    ({"kp_V_per_m": np.array([[1.0, 2.0, 3.0]]), "loop": "closed"}, "kp_V_per_m", "a single number"),
+    ({"position_m": np.zeros((0, 1))}, "position_m", "empty"),
+])
+def test_mat_variables_of_the_wrong_size_are_named_for_what_they_are(tmp_path, overrides, field, words):
+    """A 1x2 sample_time_s used to be called 'missing', an empty position_m 'expected numeric ... got float64'."""
+    with pytest.raises(InputFileError) as err:
+        read_recording(_mat(tmp_path, **overrides))
+    assert err.value.field == field and words in err.value.reason
+    assert "missing" not in err.value.reason and "got MATLAB type" not in err.value.reason

@@ -313,3 +313,23 @@ def test_an_existing_results_file_is_replaced_whole_or_not_at_all(tmp_path, monk
     assert main(SIM1 + ["--seed", "3", "--out", str(p)]) == 2
     assert "No space left" in _last_error(capsys)
     assert p.read_bytes() == before and sorted(x.name for x in tmp_path.iterdir()) == ["p.csv"]
+
+
+def test_simulate_refuses_a_noise_scale_no_recording_can_hold(tmp_path, capsys):
+    """Before simulating, naming the option (the recording itself used to be refused afterwards, naming a
+    pressure sample)."""
+    assert main(SIM1 + ["--noise-scale", "1e300", "--out", str(tmp_path / "n.csv")]) == 2
+    last = _last_error(capsys)
+    assert "--noise-scale = 1e+300" in last and "at most" in last and not (tmp_path / "n.csv").exists()
+
+
+def test_mre_replay_of_another_rigs_recording_says_what_to_replay(tmp_path, capsys):
+    """The README's ``--plant replay:run.csv`` with its paper-2 run.csv on the paper-1 MRE file."""
+    run = tmp_path / "run.csv"
+    assert main(["simulate", "--rig", "paper2-enfield", "--input", "steps", "--duration", "1", "--out", str(run)]) == 0
+    mre = tmp_path / "m.toml"
+    mre.write_text(MRE_TEXT)
+    capsys.readouterr()
+    assert main(["mre", str(mre), "--fast", "--plant", f"replay:{run}", "--out", str(tmp_path / "o")]) == 2
+    last = _last_error(capsys)
+    assert "paper2-enfield" in last and "paper1-mre" in last and "pneusim simulate --rig paper1-mre" in last

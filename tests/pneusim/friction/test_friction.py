@@ -140,3 +140,22 @@ def test_bad_files_are_refused_in_one_line(tmp_path, capsys):
     assert "SEAL=METRES" in err
     err = _error(capsys, ["friction", str(tmp_path / "missing_1bar.csv")])
     assert "not found" in err
+
+
+def test_a_utf8_bom_file_is_read_as_check_reads_recordings(tmp_path):
+    """A byte order mark before the header (Excel's 'CSV UTF-8'): pneusim check accepts it in recordings, so
+    friction files take it too, with the same numbers as without."""
+    plain = _write_test(tmp_path / "plain_3bar.csv", 3, 0.0, 5)
+    bom = tmp_path / "bom_3bar.csv"
+    bom.write_bytes(b"\xef\xbb\xbf" + plain.read_bytes())
+    a, b = read_friction_test(plain, BORE_M), read_friction_test(bom, BORE_M)
+    np.testing.assert_array_equal(a.force_N, b.force_N)
+    np.testing.assert_array_equal(a.velocity_m_per_s, b.velocity_m_per_s)
+
+
+def test_friction_outputs_are_never_its_inputs(tmp_path, capsys):
+    files = _synthetic(tmp_path, 0.0, 40)
+    before = files[0].read_bytes()
+    err = _error(capsys, ["friction", *map(str, files), "--bore", "synthetic=0.025", "--json", str(files[0])])
+    assert "--json" in err
+    assert files[0].read_bytes() == before

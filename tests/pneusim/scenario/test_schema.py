@@ -71,3 +71,24 @@ def test_sweep_with_bad_key_is_refused(tmp_path, data_dir):
     p.write_text(f'[sweep]\nscenario = "{data_dir / "tiny-open-loop.toml"}"\n[grid]\n"experiment.colour" = [1, 2]\n')
     with pytest.raises(InputFileError, match="experiment.colour"):
         load_sweep(p)
+
+
+@pytest.mark.parametrize("mutate, key, words", [
+    (lambda d: d["experiment"].update(noise_scale=1e300), "experiment.noise_scale", "at most"),
+    (lambda d: d["identifiers"][1].update(forgetting=1e-300), "identifiers[1].forgetting", "forgetting must be in"),
+    (lambda d: d["identifiers"][1].update(initial_covariance=1e308), "identifiers[1].initial_covariance",
+     "too large"),
+    (lambda d: d["identifiers"][1].update(horizons=[1, 100000]), "identifiers[1].horizons", "shorter than the run"),
+])
+def test_settings_that_cannot_give_a_result_are_refused(mutate, key, words):
+    """What the mixed-reality loop refuses, a scenario refuses too: a noise no recording can hold, an online
+    estimator that cannot give an estimate, a prediction horizon beyond the run."""
+    from pathlib import Path
+
+    spec = load_scenario(Path(__file__).with_name("data") / "tiny-open-loop.toml")
+    assert spec["identifiers"][1]["kind"] == "rls"
+    data = copy.deepcopy(spec)
+    mutate(data)
+    with pytest.raises(InputFileError) as err:
+        validate_scenario(data, where="s.toml")
+    assert err.value.field == key and words in str(err.value)
