@@ -142,9 +142,10 @@ _, rec_told = run(told, ref_V, noise_scale=0.0)
 phys_low = fit_percent(y_low, rec_told.position_m * k_sensor - 5.0)
 trained = {**bb_val, "physical (told 2 bar)": phys_val}
 at_2_bar = {**bb_low, "physical (told 2 bar)": phys_low}
-display(Markdown("| model | fit trained (6 bar, %) | fit at 2 bar (%) | gap (points) |\n|---|---|---|---|\n" + "\n".join(
-    f"| {name} | {trained[name]:.1f} | {at_2_bar[name]:.1f} | {trained[name] - at_2_bar[name]:+.1f} |"
-    for name in trained)))
+table = [f"| {name} | {trained[name]:.1f} | {at_2_bar[name]:.1f} | {trained[name] - at_2_bar[name]:+.1f} |"
+         for name in trained]
+display(Markdown("| model | fit trained (6 bar, %) | fit at 2 bar (%) | gap (points) |\n|---|---|---|---|\n"
+                 + "\n".join(table)))
 
 # %% [markdown]
 # The gap as an error plot: every model at 2 bar, as it was trained (black box) or told the new supply (physical).

@@ -45,9 +45,9 @@ def write_report(run, comp, spec) -> Path:
 
 def _response_figure(out: Path, t, y, res, comp, s) -> tuple[str, str]:
     """Measured position (and reference) and the valve command over time."""
-    fig, ax = new_figure(2, 1, title=f"{s['name']}: {s['plant']} plant, {s['mode']}: the position "
-                                     f"{'follows the reference' if comp.controller is not None else 'under the command'}"
-                                     " and the valve command that drives it", size=(9, 5), sharex=True)
+    what = "follows the reference" if comp.controller is not None else "under the command"
+    fig, ax = new_figure(2, 1, title=f"{s['name']}: {s['plant']} plant, {s['mode']}: the position {what} and the "
+                                     "valve command that drives it", size=(9, 5), sharex=True)
     ax[0].plot(t, y, lw=0.9, color=COLOURS["measured"], label="measured")
     if comp.controller is not None:
         ax[0].plot(t, comp.to_output(res.reference), lw=0.9, ls="--", color=COLOURS["reference"], label="reference")

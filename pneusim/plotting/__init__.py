@@ -25,5 +25,6 @@ from .style import (COLOURS, STANDARD_ATMOSPHERE_PA, bar_abs, bar_gauge, colour_
 __all__ = ["COLOURS", "STANDARD_ATMOSPHERE_PA", "bar_abs", "bar_gauge", "colour_for", "family_of", "fit_label", "mm",
            "mm_per_s", "model_styles", "ms", "parameter_axis", "DPI", "figure_hook", "finish_figure", "new_figure",
            "pyplot", "save_figure", "show_figure", "LEGEND_MAX_SHARE", "keep_in_place", "figure_problems",
-           "Curve", "Signal", "compare_figure", "fit_range", "mark_clipped", "padded_range", "robust_range", "zoom_window",
+           "Curve", "Signal", "compare_figure", "fit_range", "mark_clipped", "padded_range", "robust_range",
+           "zoom_window",
            "render_html", "render_markdown", "write_page"]

@@ -12,6 +12,8 @@ from __future__ import annotations
 import contextlib
 from pathlib import Path
 
+from ..outputs import savefig_atomic
+
 __all__ = ["pyplot", "new_figure", "finish_figure", "save_figure", "show_figure", "figure_hook", "DPI",
            "TITLE_SIZE", "PANEL_TITLE_SIZE", "LEGEND_SIZE"]
 
@@ -81,25 +83,28 @@ def _wrap_title(fig) -> None:
 
 def finish_figure(fig):
     """Apply the standard's last step to ``fig`` (a title broken into lines that fit, legends placed where they
-    cover no data; constrained layout for a figure made without a layout); returns ``fig``."""
+    cover no data; a layout for a figure made without one); returns ``fig``."""
     from .legend import place_legends
 
     if fig.get_layout_engine() is None:
-        fig.set_layout_engine("constrained")
+        # constrained layout cannot take over colour bars made without it; tight layout can
+        colour_bars = any(hasattr(ax, "_colorbar") for ax in fig.axes)
+        fig.set_layout_engine("tight" if colour_bars else "constrained")
     _wrap_title(fig)
     place_legends(fig)
     return fig
 
 
 def save_figure(fig, path, dpi: int = DPI) -> Path:
-    """Finish ``fig``, write it to ``path`` (PNG, SVG or PDF by the suffix) and close it; returns the path."""
+    """Finish ``fig``, write it to ``path`` (PNG, SVG or PDF by the suffix; atomically: a crash leaves the
+    previous file or none, never a truncated one) and close it; returns the path."""
     plt = pyplot()
     path = Path(path)
     try:
         finish_figure(fig)
         for hook in list(_HOOKS):
             hook(fig, path)
-        fig.savefig(path, dpi=dpi)
+        savefig_atomic(fig, path, dpi=dpi)
     finally:
         plt.close(fig)
     return path

@@ -15,7 +15,8 @@ import weakref
 
 import numpy as np
 
-__all__ = ["LEGEND_MAX_SHARE", "LEGEND_PAD_PX", "PLACES", "data_series", "covered_share", "place_legends", "keep_in_place"]
+__all__ = ["LEGEND_MAX_SHARE", "LEGEND_PAD_PX", "PLACES", "data_series", "covered_share", "place_legends",
+           "keep_in_place"]
 
 #: the largest share of any one series' points a legend may cover (2 %: a corner legend over the tail of
 #: a curve passes, a legend across a curve's middle does not)

@@ -19,6 +19,8 @@ import html
 import re
 from pathlib import Path
 
+from ..outputs import write_text_atomic
+
 __all__ = ["render_markdown", "render_html", "write_page"]
 
 _STYLE = ("body{font-family:sans-serif;max-width:60em;margin:2em auto;line-height:1.4}"
@@ -86,9 +88,8 @@ def render_html(blocks, title: str, folder) -> str:
 
 
 def write_page(blocks, folder, title: str, markdown: str = "report.md", html_name: str = "report.html") -> Path:
-    """Write ``folder/markdown`` and the self-contained ``folder/html_name``; returns the HTML file's path."""
+    """Write ``folder/markdown`` and the self-contained ``folder/html_name`` (each atomically); returns the HTML
+    file's path."""
     folder = Path(folder)
-    (folder / markdown).write_text(render_markdown(blocks), encoding="utf-8")
-    page = folder / html_name
-    page.write_text(render_html(blocks, title, folder), encoding="utf-8")
-    return page
+    write_text_atomic(folder / markdown, render_markdown(blocks))
+    return write_text_atomic(folder / html_name, render_html(blocks, title, folder))

@@ -18,7 +18,8 @@ from .figure import LEGEND_SIZE, PANEL_TITLE_SIZE, new_figure
 from .legend import keep_in_place
 from .style import COLOURS, fit_label, model_styles
 
-__all__ = ["Curve", "Signal", "compare_figure", "zoom_window", "robust_range", "mark_clipped", "padded_range", "fit_range"]
+__all__ = ["Curve", "Signal", "compare_figure", "zoom_window", "robust_range", "mark_clipped", "padded_range",
+           "fit_range"]
 
 #: the zoom window's length as a share of the record
 ZOOM_SHARE = 0.08

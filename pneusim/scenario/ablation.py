@@ -40,7 +40,8 @@ import numpy as np
 
 from ..errors import InputFileError, PneusimError
 from ..model import EFFECTS, make_effect
-from ..outputs import savefig_atomic, write_json_atomic, write_text_atomic
+from ..outputs import write_json_atomic, write_text_atomic
+from ..plotting import save_figure
 from ..rig import load_rig
 from ..simulate import rig_effects
 from .figures import pyplot
@@ -358,7 +359,7 @@ def _figure(path, rows, columns, values, ab):
             if v is not None:
                 mat[i, j] = v
     fig, axes = plt.subplots(1, 2 if sq else 1, figsize=(11 if sq else 9, 0.32 * len(rows) + 2), squeeze=False,
-                             gridspec_kw={"width_ratios": [3, 2]} if sq else None)
+                             gridspec_kw={"width_ratios": [3, 2]} if sq else None, layout="constrained")
     rls_cols = [j for j, c in enumerate(columns) if _metric_of(ab, c) == "square_error"]
     fit_cols = [j for j, c in enumerate(columns) if j not in rls_cols]
     panels = ([(axes[0, 0], rls_cols, "one-step square error (log colour)"), (axes[0, 1], fit_cols, "fit %")]
@@ -381,9 +382,11 @@ def _figure(path, rows, columns, values, ab):
                             ha="center", va="center", fontsize=6)
         ax.set_xticks(range(len(cols)), [columns[j] for j in cols], rotation=30, ha="right", fontsize=7)
         ax.set_yticks(range(len(rows)), rows, fontsize=7)
+        ax.set_xlabel("model")
+        ax.set_ylabel("rig case")
         ax.set_title(title, fontsize=9)
-        fig.colorbar(im, ax=ax, fraction=0.04)
-    fig.suptitle(f"Effect ablation of {ab['scenario_name']}: one effect at a time", fontsize=10)
-    fig.tight_layout()
-    savefig_atomic(fig, path, dpi=110)
-    plt.close(fig)
+        fig.colorbar(im, ax=ax, fraction=0.04, label="log10 of the square error (output unit^2)"
+                     if title.startswith("one-step") else "fit (%)")
+    fig.suptitle(f"Effect ablation of {ab['scenario_name']}: how each model scores with one effect at a time "
+                 "switched on in the rig (green: better)", fontsize=10)
+    save_figure(fig, path)

@@ -81,8 +81,8 @@ def _validation(path, t, y, rows, unit, ylabel):
     """Validation data with each model's simulated output, each model's error, and both zoomed."""
     curves = [Curve(r["identifier"], r["_yhat"], r.get("fit_percent"), r.get("kind")) for r in rows]
     scored = sorted((r for r in rows if np.isfinite(r.get("fit_percent", np.nan))), key=lambda r: r["fit_percent"])
-    ranking = (f": best {scored[-1]['identifier']} ({scored[-1]['fit_percent']:.1f} %), worst {scored[0]['identifier']} "
-               f"({scored[0]['fit_percent']:.1f} %)" if len(scored) > 1 else "")
+    ranking = (f": best {scored[-1]['identifier']} ({scored[-1]['fit_percent']:.1f} %), worst "
+               f"{scored[0]['identifier']} ({scored[0]['fit_percent']:.1f} %)" if len(scored) > 1 else "")
     fig, _ = compare_figure(
         t, y, curves, measured_label="measured (simulated rig)", ylabel=ylabel, unit=unit,
         title=f"Validation half, each model simulated from the input{ranking}; the errors (below) and the zoom "
@@ -103,7 +103,8 @@ def _published_s(path, t, y, rows, unit, ylabel):
                 label=fit_label(f"eq. 4, {r['reading']}", r.get("fit_percent")))
         lo, hi = padded_range(y, 1.0)
         span = hi - lo
-        ax.set_ylim(np.clip(np.nanmin(r["_yhat"]), lo - 2 * span, lo), np.clip(np.nanmax(r["_yhat"]), hi, hi + 2 * span))
+        ax.set_ylim(np.clip(np.nanmin(r["_yhat"]), lo - 2 * span, lo),
+                    np.clip(np.nanmax(r["_yhat"]), hi, hi + 2 * span))
         ax.set_ylabel(ylabel)
         ax.set_title(f"{r['reading']}: delay {r['delay_s']:g} s, fit {r.get('fit_percent', float('nan')):.1f} %; "
                      f"{r.get('behaviour', '')}", fontsize=8)
