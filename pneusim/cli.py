@@ -14,7 +14,7 @@ import os
 import sys
 
 from .errors import PneusimError
-from .shutdown import EXIT_TERMINATED, Terminated
+from .shutdown import EXIT_TERMINATED, Terminated, sigterm_raises
 from .version import __version__
 
 __all__ = ["main", "run_command", "build_parser", "COMMANDS"]
@@ -58,9 +58,14 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def run_command(args: argparse.Namespace) -> int:
-    """Run the parsed sub-command ``args.func(args)``; a user's mistake is one line on stderr and exit 2."""
+    """Run the parsed sub-command ``args.func(args)``; a user's mistake is one line on stderr and exit 2.
+
+    SIGTERM stops any command as Ctrl-C does (:mod:`pneusim.shutdown`): its ``finally`` blocks run, so the
+    valve goes to its null and no result is left half-written; the exit status is 143.
+    """
     try:
-        return int(args.func(args) or 0)
+        with sigterm_raises():
+            return int(args.func(args) or 0)
     except BrokenPipeError:
         # the reader went away (``pneusim check ... | head``): stop quietly, as cat and grep do
         _silence_stdout()

@@ -8,6 +8,7 @@ from ..errors import PneusimError
 from ..friction import FrictionStudy, read_friction_test
 from ..friction.data import seal_of
 from ..friction.plot import plot_friction_study
+from ..outputs import write_json_atomic
 from .common import output_file
 
 
@@ -59,7 +60,7 @@ def run(args) -> int:
     study = FrictionStudy(supply_gauge_Pa=args.supply_gauge).fit(tests, progress=True)
     print(study.table())
     if args.json:
-        print(f"wrote {study.write_json(args.json)}")
+        print(f"wrote {write_json_atomic(args.json, study.to_dict(), indent=2)}")
     if args.plot:
         print(f"wrote {plot_friction_study(study, args.plot)}")
     return 0

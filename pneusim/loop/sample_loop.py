@@ -20,6 +20,9 @@ work ends after the next deadline is an *overrun*.  A late sample runs at once
 skipped, so on a real plant a late sample is measured after its nominal time, by
 the ``lateness_s`` the recording holds.
 
+A position reading or a command that is not a finite number (a sensor fault, a controller fed one) is a
+fault too: it never reaches the valve.
+
 On Ctrl-C (:class:`KeyboardInterrupt`), on SIGTERM (:class:`pneusim.shutdown.Terminated`, where the
 caller turned it into an exception with :func:`pneusim.shutdown.sigterm_raises`), on any exception raised by a
 component (a *fault*) or when the overruns exceed their budget, the loop stops,
@@ -98,7 +101,8 @@ class LoopResult:
     error: str | None = None
     wall_time_s: float = 0.0
     valve_to_null: bool = False
-    #: the exception of a fault (re-raised by callers that do not handle faults themselves)
+    #: the exception of a fault, or the Ctrl-C / SIGTERM that stopped the loop (re-raised by callers that do
+    #: not handle them themselves)
     exception: BaseException | None = field(default=None, repr=False)
 
     @property
@@ -154,7 +158,7 @@ def run_loop(plant, reference: np.ndarray, controller, estimators: Mapping[str, 
         except _OverrunBudgetExceeded as exc:
             stop, error = STOP_OVERRUNS, str(exc)
         except KeyboardInterrupt as exc:
-            stop = STOP_TERMINATED if isinstance(exc, Terminated) else STOP_INTERRUPTED
+            stop, exception = (STOP_TERMINATED if isinstance(exc, Terminated) else STOP_INTERRUPTED), exc
         except Exception as exc:  # a component's fault: stop safely, keep what was taken, report it
             stop, exception = STOP_FAULT, exc
             error = str(exc) if isinstance(exc, PneusimError) else f"{type(exc).__name__}: {exc}"
@@ -240,9 +244,16 @@ class _SampleLoop:
         """Sample ``k`` (negative: warm-up, nothing recorded): measure, identify, control, actuate, record."""
         t0 = self.clock()
         m = self.plant.measure()
+        x = m.position_m
+        if x - x != 0.0:          # NaN or infinite: no controller may act on it (x - x is 0 for every finite x)
+            raise PneusimError(f"sample {k}: the position reading {x!r} is not a finite number (a sensor fault); "
+                               "the loop stops with the valve at its null")
         ref = float(self.reference[k if k > 0 else 0])
-        row_preds = self.identify(m.position_m) if k >= 0 else None
-        u = self.controller.command(m.t_s, ref, m.position_m) if self.closed else ref
+        row_preds = self.identify(x) if k >= 0 else None
+        u = self.controller.command(m.t_s, ref, x) if self.closed else ref
+        if u - u != 0.0:
+            raise PneusimError(f"sample {k}: the command {u!r} is not a finite number; it is not sent, the loop "
+                               "stops with the valve at its null")
         t_cmd = self.clock()
         if k < self.n - 1:
             self.plant.step(u)

@@ -13,6 +13,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..errors import PneusimError
 from ..experiment import Experiment
 from ..loop import StatusLine, run_loop
 from ..online import PaperRLS
@@ -71,10 +72,8 @@ def simulate_online(rig: Rig, experiment: Experiment, estimators: dict[str, Pape
     # the sample loop of the mixed-reality environment, here as fast as possible (no pacing)
     res = run_loop(plant, experiment.signal, ctrl if closed else None, estimators, to_output, to_input,
                    n_warm=n_warm, status=StatusLine(interval_s=0.5, label="online run") if progress else None)
-    if not res.completed:
-        if res.stop_reason.startswith("interrupted"):
-            raise KeyboardInterrupt
-        raise res.exception
+    if not res.completed:          # a fault, or the Ctrl-C / SIGTERM that stopped the loop: raised again here
+        raise res.exception if res.exception is not None else PneusimError(res.error or res.stop_reason)
     pos, cmd, pa, pb = res.position_m, res.valve_cmd_V, res.pressure_a_Pa, res.pressure_b_Pa
     preds, thetas, wall = res.predictions, res.thetas, res.wall_time_s
     meta = {"format": "pneusim-recording/1", "sample_time_s": repr(ts), "rig": rig.name, "loop": experiment.loop,

@@ -333,3 +333,35 @@ def test_mre_replay_of_another_rigs_recording_says_what_to_replay(tmp_path, caps
     assert main(["mre", str(mre), "--fast", "--plant", f"replay:{run}", "--out", str(tmp_path / "o")]) == 2
     last = _last_error(capsys)
     assert "paper2-enfield" in last and "paper1-mre" in last and "pneusim simulate --rig paper1-mre" in last
+
+
+def test_sigterm_stops_any_command_as_ctrl_c_does_and_leaves_no_partial_file(tmp_path):
+    """A sweep stopped by SIGTERM: exit 143, every stored run whole, a restart reuses them."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    (tmp_path / "tiny.toml").write_text(SCENARIO.read_text())
+    sweep = tmp_path / "s.toml"
+    sweep.write_text(f'[sweep]\nname = "s"\nscenario = "tiny.toml"\nseeds = {list(range(40))}\n'
+                     '[grid]\n"rig.overrides.moving_mass_kg" = [1.0, 1.2, 1.4, 1.6, 1.8]\n')
+    out = tmp_path / "o"
+    proc = subprocess.Popen([sys.executable, "-m", "pneusim.cli", "sweep", str(sweep), "--out", str(out),
+                             "--workers", "0", "--no-progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and len(list((out / "runs").glob("*.json"))) < 2:
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 128 + signal.SIGTERM and "terminated (SIGTERM)" in err and "Traceback" not in err
+    stored = list((out / "runs").glob("*.json"))
+    assert 2 <= len(stored) < 200 and all(json.loads(p.read_text())["run_id"] == p.stem for p in stored)
+    assert all(not json.loads(p.read_text())["error"] for p in stored)      # the interrupt is no failed run
+    assert not [p for p in out.rglob(".*") if ".tmp" in p.name]
+    assert main(["sweep", str(sweep), "--out", str(out), "--workers", "0", "--no-progress"]) == 0

@@ -78,3 +78,30 @@ def test_a_fault_or_ctrl_c_stops_with_the_valve_at_null_and_keeps_the_samples_ta
                        null_V=5.0)
         assert res.stop_reason == reason and res.n_samples == 7 and plant.nulls == [5.0]
         assert res.valve_to_null and (res.error == "RuntimeError: cable" if reason == STOP_FAULT else True)
+
+
+class _BrokenSensor(_Plant):
+    """A position sensor that fails at sample ``at``: NaN, or a value at the float's end."""
+
+    def __init__(self, log, at, value):
+        super().__init__(log)
+        self.at, self.value, self.commands = at, value, []
+
+    def measure(self):
+        m = super().measure()
+        return Measurement(m.t_s, self.value, m.pressure_a_Pa, m.pressure_b_Pa) if self.k == self.at else m
+
+    def step(self, u):
+        self.commands.append(u)
+        super().step(u)
+
+
+def test_a_command_that_is_not_a_number_never_reaches_the_valve():
+    """A sensor reading NaN (or a controller dividing by it) makes the command NaN; the loop stops as on a
+    fault, with the valve at its null, instead of sending it on."""
+    for value in (float("nan"), float("inf"), -1e308 * 10):
+        plant = _BrokenSensor([], at=4, value=value)
+        res = run_loop(plant, np.full(20, 0.03), ProportionalController(40.0), {}, lambda p: p, lambda u, k: u,
+                       null_V=5.0)
+        assert res.stop_reason == STOP_FAULT and "not a finite number" in res.error
+        assert plant.nulls == [5.0] and all(np.isfinite(plant.commands)) and len(plant.commands) == 4

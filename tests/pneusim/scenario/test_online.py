@@ -36,3 +36,21 @@ def test_the_estimators_see_every_sample_of_the_run_inside_the_loop():
     np.testing.assert_array_equal([v for kind, v in est.seen if kind == "y"], res.recording.position_m * 100)
     np.testing.assert_array_equal([v for kind, v in est.seen if kind == "u"], res.recording.valve_cmd_V)
     assert res.predictions[("r", 1)].shape == (n,) and res.thetas["r"].shape == (n, 4)
+
+
+def test_ctrl_c_or_sigterm_inside_the_online_run_stops_the_scenario():
+    """The interrupt the loop stopped on is raised again (a sweep stops), not turned into a failed run
+    ('TypeError: exceptions must derive from BaseException' for SIGTERM, and the sweep went on)."""
+    import pytest
+
+    from pneusim.shutdown import Terminated
+
+    rig = load_rig("paper1-mre")
+    for interrupt in (KeyboardInterrupt, Terminated):
+        class _Interrupted(PaperRLS):
+            def update(self, y):
+                raise interrupt()
+
+        exp = Experiment("closed", 0.001, np.full(60, 0.03), default_controller(rig), warmup_s=0.0)
+        with pytest.raises(interrupt):
+            simulate_online(rig, exp, {"r": _Interrupted(2)}, lambda p: p * 100, lambda c, k: c)
