@@ -168,7 +168,7 @@ def run_loop(plant, reference: np.ndarray, controller, estimators: Mapping[str, 
             if writer is not None:
                 writer.close()
             if status is not None:
-                status.close()
+                status.close(loop.done)
     return loop.result(stop, error, exception, wall, null_sent)
 
 

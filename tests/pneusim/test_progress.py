@@ -40,3 +40,19 @@ def test_a_terminal_gets_the_bar():
     bar.update(3)
     bar.close()
     assert type(bar).__name__ == "tqdm" and "3/3" in term.getvalue()
+
+
+def test_the_loop_status_in_a_log_ends_with_the_count_the_run_ended_at():
+    """A run shorter than one status interval: the log gets its first line and the last count, not a '0 %' only
+    (and no carriage returns)."""
+    import numpy as np
+
+    from pneusim.loop import StatusLine
+
+    log = io.StringIO()
+    status = StatusLine(log, interval_s=0.5, label="online run")
+    status.show(1, 200, 0, 0, np.array([]), float("nan"), "RLS 2")
+    status.close(200)
+    assert "\r" not in log.getvalue()
+    assert log.getvalue().splitlines() == ["online run: 1/200 samples (0 %), 1-step error (RLS 2) +nan",
+                                           "online run: 200/200 samples (100 %), ended"]
