@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..outputs import savefig_atomic, write_text_atomic
 from .locate import named_states, velocity_estimate
 from .refits import noise_levels
 from .result import DiagnosisResult
@@ -66,7 +67,7 @@ def plot_fit(result: DiagnosisResult, path) -> Path:
     axes[0, 0].legend(loc="upper right", fontsize=8, ncol=3)
     axes[-1, 0].set_xlabel("time (s)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    savefig_atomic(fig, path, dpi=110)
     plt.close(fig)
     return Path(path)
 
@@ -95,7 +96,7 @@ def plot_residuals(result: DiagnosisResult, path, noise: dict) -> Path:
                          fontsize=9)
     axes[-1, 0].set_xlabel("time (s)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    savefig_atomic(fig, path, dpi=110)
     plt.close(fig)
     return Path(path)
 
@@ -230,7 +231,7 @@ def plot_evidence(result: DiagnosisResult, k: int, path) -> Path:
     ax.legend(fontsize=8)
     fig.suptitle(f"{k + 1}. {eff}", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    savefig_atomic(fig, path, dpi=110)
     plt.close(fig)
     return Path(path)
 
@@ -344,7 +345,7 @@ def write_report(result: DiagnosisResult, folder) -> Path:
         plot_evidence(result, k, folder / name)
         evidence.append(name)
     md = _markdown(result, evidence)
-    (folder / "report.md").write_text(md)
+    write_text_atomic(folder / "report.md", md)
     index = folder / "index.html"
-    index.write_text(_html(md, f"diagnosis of {result.recording}"))
+    write_text_atomic(index, _html(md, f"diagnosis of {result.recording}"))
     return index

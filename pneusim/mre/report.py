@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..outputs import write_text_atomic
 from ..plotting import COLOURS, colour_for, ms, new_figure, padded_range, robust_range, save_figure
 
 __all__ = ["write_report"]
@@ -39,7 +40,7 @@ def write_report(run, comp, spec) -> Path:
     lines += _model_lines(s) + _prediction_lines(s, comp.output_unit)
     lines += ["", "## Figures", ""] + [f"![{cap}]({f})\n\n*{cap}*\n" for cap, f in figs]
     path = out / "report.md"
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_text_atomic(path, "\n".join(lines) + "\n")
     return path
 
 

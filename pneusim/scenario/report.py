@@ -9,12 +9,12 @@ live in :mod:`.tables`.
 from __future__ import annotations
 
 import csv
-import json
 import shlex
 from pathlib import Path
 
 import numpy as np
 
+from ..outputs import atomic_path, write_json_atomic
 from ..plotting import write_page
 from ..recording import write_recording
 from .identify import clean_row
@@ -57,7 +57,7 @@ def write_predictions(result: ScenarioResult, path) -> list[str]:
         cols[f"{r['identifier']} | {r.get('reading', '')}"] = full
     names = list(cols)
     data = np.column_stack([np.asarray(cols[c], float) for c in names])
-    with open(path, "w", newline="", encoding="utf-8") as fh:
+    with atomic_path(path) as tmp, open(tmp, "x", newline="", encoding="utf-8") as fh:
         writer = csv.writer(fh)
         writer.writerow(names)
         for row in data:
@@ -110,7 +110,7 @@ def write_report(result: ScenarioResult, out_dir, scenario_path: str = "SCENARIO
     files["figures"] = [f for f, _ in figs]
     metrics = metrics_dict(result, files)
     metrics["overrides"] = list(overrides)
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=1, allow_nan=False), encoding="utf-8")
+    write_json_atomic(out / "metrics.json", metrics, indent=1, allow_nan=False)
     sc, exp, data = spec["scenario"], spec["experiment"], spec["data"]
     title = sc["title"] or sc["name"]
     blocks = [("h", (1, title))]
