@@ -143,14 +143,13 @@ def check_sample_time(recording: Recording, rig) -> None:
 def check_plausible(recording: Recording, rig) -> None:
     """Refuse a recording that its rig cannot have made (one :class:`InputFileError` naming the sample).
 
-    Checks: the sample time (:func:`check_sample_time`); every valve command inside
-    ``[valve_min_V, valve_max_V]`` (give or take
+    Checks: every valve command inside ``[valve_min_V, valve_max_V]`` (give or take
     :data:`COMMAND_MARGIN` of the range); every pressure (A, B, supply) between a little below
     atmosphere/exhaust and a little above the supply (:data:`PRESSURE_LOW_MARGIN`,
     :data:`PRESSURE_HIGH_MARGIN`: a pressure written in bar or kPa is refused); every position and
-    reference within [-1 %, 101 %] of the rig's stroke.  Gaps (NaN) are skipped.
+    reference within [-1 %, 101 %] of the rig's stroke (gaps, NaN, are skipped); then the sample time
+    (:func:`check_sample_time`).
     """
-    check_sample_time(recording, rig)
     p = rig.params
     lo_v, hi_v = p["valve_min_V"], p["valve_max_V"]
     margin_v = COMMAND_MARGIN * (hi_v - lo_v)
@@ -180,6 +179,7 @@ def check_plausible(recording: Recording, rig) -> None:
             raise InputFileError(f"{where}{float(values[i])!r} {unit} at t = {recording.time_s[i]:.6g} s is outside {what}; "
                                  f"{bad.size} of {values.size} samples are", path=recording.source, line=line,
                                  field=name)
+    check_sample_time(recording, rig)
 
 
 def end_stop_time(recording: Recording, stroke_m: float) -> dict[str, float]:

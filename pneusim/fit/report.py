@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from ..outputs import write_json_atomic
 from ..plotting import Curve, Signal, bar_gauge, compare_figure, mm, save_figure, write_page
 from .result import FitResult
 
@@ -106,7 +107,7 @@ def write_fit_report(result: FitResult, directory) -> Path:
     ``directory``; returns the path of ``index.html``."""
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
-    result.write_json(out / "fit.json")
+    write_json_atomic(out / "fit.json", result.to_dict(), indent=1)     # as FitResult.write_json, atomically
     plot_fit(result, out / "fit.png")
     return write_page(_blocks(result), out, f"Physical fit of {result.recording_name}", markdown="report.md",
                       html_name="index.html")
