@@ -26,7 +26,8 @@ def register(sub) -> None:
                     "with standard errors, correlations and a validation fit on data the fit never saw.",
         epilog="examples:\n  pneusim fit run.csv --json fit.json --report fit-report\n"
                "  pneusim fit run.csv --effect valve_deadband:deadband_V=0.2 --free friction_coulomb_N "
-               "--free valve_deadband.deadband_V\n\n"
+               "--free valve_deadband.deadband_V\n"
+               "      (only these two are fitted: --free replaces the default list)\n\n"
                "exit status: 0 fitted; 2 bad input (one line on stderr); 3 fitted, but the residual stays far\n"
                "above the sensor noise (residual rms / noise std above 1.5 for some measured signal: the model\n"
                "does not explain the recording; the result is still written). Above 1.1 the result says\n"
