@@ -90,8 +90,8 @@ show_figure(fig)
 
 # %%
 th = res.thetas["order 4"]
-fig, ax = new_figure(title="theta(k) of the order-4 estimator (lambda 0.99): a (solid) and b (dashed) settle within "
-                           "the first pulse", size=(9, 3.2))
+fig, ax = new_figure(title="theta(k) of the order-4 estimator (lambda 0.99): a (solid) and b (dashed) jump when a "
+                           "pulse starts and drift while the piston rests", size=(9, 3.2))
 for i in range(4):
     ax.plot(t, th[:, i], lw=0.8, color=f"C{i}", label=f"a{i + 1}")
     ax.plot(t, th[:, 4 + i], lw=0.8, ls="--", color=f"C{i}", label=f"b{i + 1}")
