@@ -1,6 +1,6 @@
 """No wrong answer without a word, no traceback for a user mistake.
 
-The closed-loop recording is the one the README's first command writes
+The closed-loop recording is paper 2's multisine in its position loop
 (``pneusim simulate --rig paper2-enfield --input multisine --loop closed --seed 1``).
 """
 import math
