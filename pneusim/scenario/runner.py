@@ -85,7 +85,7 @@ def run_scenario(spec: dict, progress: bool = False, variants: bool = True) -> S
     spec : dict
         A scenario validated by :func:`~pneusim.scenario.schema.validate_scenario`.
     progress : bool
-        tqdm progress bars on the simulations.
+        progress on the simulations (a bar on a terminal, a line every few seconds in a log).
     variants : bool
         Also run the ``[[variants]]`` (extra experiments reported beside the main one).
     """
