@@ -185,8 +185,9 @@ class ResultsFolder:
     overwrite : bool
         With ``refuse`` or ``measured``: clear the other run's files (with a message) instead of refusing.
     known : sequence of str
-        Glob patterns (relative to the folder) of the files this command writes: what an older folder
-        without a manifest holds of it, removed when it is cleared.
+        Names and glob patterns (relative to the folder) of the files this command writes: an existing
+        file of such a name would be replaced, so it counts as another run's; the patterns count where
+        the folder is marked as this command's (``markers``).  What is removed when it is cleared.
     markers : sequence of str
         Names whose presence marks a folder without a manifest as one of this command's (default
         ``known``'s plain names).
@@ -259,13 +260,16 @@ class ResultsFolder:
         return bool(parts) and parts[0] not in self.keep
 
     def _previous_files(self, manifest: dict | None) -> list[str]:
-        """The files of the run that wrote the folder: its manifest's list, and the command's known names
-        (when the folder is marked as this command's: a manifest, or one of its marker files)."""
+        """The files of another run in the folder: its manifest's list; every file of a name this command
+        writes (it would be replaced); and, where the folder is marked as this command's (a manifest, or
+        one of its marker files), every file matching the command's patterns (figures, per-case files)."""
         names = set()
         if manifest:
             names |= {rel for rel in manifest.get("files", []) if isinstance(rel, str) and self._inside(rel)}
+        listing = self._listing()
+        names |= {rel for rel in listing if rel in self.known}
         if manifest is not None or any((self.path / m).exists() for m in self.markers):
-            names |= {rel for rel in self._listing() if any(fnmatch.fnmatchcase(rel, k) for k in self.known)}
+            names |= {rel for rel in listing if any(fnmatch.fnmatchcase(rel, k) for k in self.known)}
         return sorted(rel for rel in names if (self.path / rel).is_file())
 
     # ------------------------------------------------------------ the two steps

@@ -151,3 +151,13 @@ def test_a_manifest_never_removes_a_file_outside_its_folder_nor_an_input(tmp_pat
         folder.prepare()
     ResultsFolder(out, "--out", "y", {"a": 1}, overwrite=True).prepare()
     assert victim.read_text() == "keep"
+
+
+def test_a_file_the_run_would_replace_counts_as_another_runs(tmp_path):
+    """No manifest, no marker, but a report.md of the user's where the run writes its report.md."""
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "report.md").write_text("# my notes")
+    with pytest.raises(PneusimError, match="report.md; no pneusim-manifest.json"):
+        ResultsFolder(out, "--out", "x", {"a": 1}, known=("report.md", "*.png"), markers=("metrics.json",)).prepare()
+    assert (out / "report.md").read_text() == "# my notes"
