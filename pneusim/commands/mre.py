@@ -15,7 +15,7 @@ from ..shutdown import EXIT_TERMINATED, sigterm_raises
 from .common import DURATION, add_overwrite_argument, number_type, results_folder
 
 #: what an MRE run writes into its folder (pneusim.mre.run.run_mre and its report)
-RUN_FILES = ("recording.csv", "summary.json", "coefficients.npz", "report.md", "report.html", "*.png")
+RUN_FILES = ("recording.csv", "summary.json", "coefficients.npz", "report.md", "*.png")
 
 CPU = number_type("a CPU number >= 0", 0, integer=True)
 PRIORITY = number_type("a SCHED_FIFO priority in 0..99 (0: normal scheduling)", 0, 99, integer=True)

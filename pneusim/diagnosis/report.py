@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..outputs import savefig_atomic, write_text_atomic
+from ..outputs import savefig_atomic, write_json_atomic, write_text_atomic
 from .locate import named_states, velocity_estimate
 from .refits import noise_levels
 from .result import DiagnosisResult
@@ -335,7 +335,7 @@ def write_report(result: DiagnosisResult, folder) -> Path:
     """Write the report folder; returns the path of ``index.html`` (the file to open)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    result.write_json(folder / "diagnosis.json")
+    write_json_atomic(folder / "diagnosis.json", result.to_dict(), indent=1, allow_nan=False)   # as write_json
     noise = noise_levels(result.nominal_fit.recording, result.nominal_fit.rig)
     plot_fit(result, folder / "fit.png")
     plot_residuals(result, folder / "residuals.png", noise)
