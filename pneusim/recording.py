@@ -15,6 +15,10 @@ metadata lines counted) or the variable (``.mat``), the column, and what was
 expected.  Nothing is repaired and nothing is half-loaded.  In optional and
 extra columns an empty cell or ``nan`` is a gap: it is kept as NaN, never
 interpolated (see :meth:`Recording.gap_mask`).
+
+The checks of the contract, and the place a fault is named by, are
+:mod:`pneusim.recording_checks`; this module holds the recording, its two file
+forms and its summary.
 """
 
 from __future__ import annotations
@@ -23,80 +27,22 @@ import dataclasses
 import math
 import re
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
 from .errors import InputFileError
 from .outputs import atomic_path, write_text_atomic
+# the format's constants are offered here too, where readers of recordings look for them
+from .recording_checks import (CONTROLLER_KEYS, FORMAT, MIN_SAMPLES, OPTIONAL_COLUMNS,  # noqa: F401
+                               POSITION_MARGIN, PRESSURE_COLUMNS, PRESSURE_MAX_PA, REQUIRED_COLUMNS, SIGNALS,
+                               TIME_RTOL, Place, as_vector, check_columns, check_metadata, rules)
 
 __all__ = ["Recording", "read_recording", "write_recording", "summarize", "FORMAT",
            "REQUIRED_COLUMNS", "OPTIONAL_COLUMNS", "PRESSURE_COLUMNS", "MIN_SAMPLES"]
 
 
-def _load_format_rules():
-    """The value rules of the format, which live once in ``sysid/_format_rules.py`` (sysid's reader uses
-    them too and must not import pneusim).  The module depends on NumPy only; it is loaded by its file
-    so that reading a recording does not import all of sysid (SciPy's signal and stats: seconds)."""
-    import importlib.util
-    import sys
-
-    name = "sysid._format_rules"
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.find_spec("sysid")
-    path = Path(spec.submodule_search_locations[0]) / "_format_rules.py"
-    module_spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(module_spec)
-    sys.modules[name] = module
-    module_spec.loader.exec_module(module)
-    return module
-
-
-rules = _load_format_rules()
-FORMAT, MIN_SAMPLES, POSITION_MARGIN = rules.FORMAT, rules.MIN_SAMPLES, rules.POSITION_MARGIN
-PRESSURE_COLUMNS, PRESSURE_MAX_PA, REQUIRED_COLUMNS, TIME_RTOL = (rules.PRESSURE_COLUMNS, rules.PRESSURE_MAX_PA,
-                                                                 rules.REQUIRED_COLUMNS, rules.TIME_RTOL)
-
-#: ``reference_m`` is required too when ``loop: closed``
-OPTIONAL_COLUMNS = ("reference_m", "pressure_a_Pa", "pressure_b_Pa", "supply_Pa")
-SIGNALS = ("time_s", "reference_m", "valve_cmd_V", "position_m") + PRESSURE_COLUMNS
-CONTROLLER_KEYS = ("kp_V_per_m", "u0_V", "u_min_V", "u_max_V")
-
 _KEY = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 _META = re.compile(r"#\s*([A-Za-z][A-Za-z0-9_]*)\s*:(.*)\Z")
-_NUMBER = rules.NUMBER
-
-
-@dataclasses.dataclass
-class _Place:
-    """Where values came from, to name them in a message: file, metadata lines, rows."""
-
-    path: str | Path | None = None
-    key_lines: Mapping[str, int] = dataclasses.field(default_factory=dict)
-    header_line: int | None = None
-    first_row_line: int | None = None   #: CSV line of sample 0; None: name samples instead
-
-    def problem(self, problem: "rules.Problem | None") -> None:
-        """Raise the error of a broken format rule (see :mod:`sysid._format_rules`), if any."""
-        if problem is not None:
-            if problem.key is not None:
-                self.fail(problem.message, problem.column, key=problem.key)
-            self.fail(problem.message, problem.column, row=problem.row, header=problem.row is None)
-
-    def fail(self, message: str, field: str | None = None, *, key: str | None = None,
-             row: int | None = None, header: bool = False):
-        line = None
-        if key is not None:
-            line = self.key_lines.get(key, self.header_line)
-        elif row is not None:
-            if self.first_row_line is None:
-                message = f"sample {row + 1}: {message}"
-            else:
-                line = self.first_row_line + row
-        elif header:
-            line = self.header_line
-        raise InputFileError(message, path=self.path, line=line, field=field)
 
 
 @dataclasses.dataclass(eq=False)
@@ -143,7 +89,7 @@ class Recording:
     first_row_line: int | None = dataclasses.field(default=None, repr=False)
 
     def __post_init__(self):
-        place = _Place()
+        place = Place()
         meta = {"format": FORMAT} if "format" not in self.metadata else {}
         for key, value in self.metadata.items():
             if not isinstance(key, str) or not _KEY.match(key):
@@ -155,13 +101,13 @@ class Recording:
         self.metadata = meta
         for name in SIGNALS:
             if getattr(self, name) is not None:
-                setattr(self, name, _as_vector(getattr(self, name), name, place))
-        self.extra = {str(k): _as_vector(v, str(k), place) for k, v in self.extra.items()}
+                setattr(self, name, as_vector(getattr(self, name), name, place))
+        self.extra = {str(k): as_vector(v, str(k), place) for k, v in self.extra.items()}
         for name in self.extra:
             if name in SIGNALS:
                 place.fail("extra column has the name of a signal; pass it as that signal", name)
-        _check_metadata(self.metadata, place)
-        _check_columns(self.columns(), self.metadata, place, stroke_m=None, min_samples=0)
+        check_metadata(self.metadata, place)
+        check_columns(self.columns(), self.metadata, place, stroke_m=None, min_samples=0)
 
     # ----------------------------------------------------------------- access
     @property
@@ -232,67 +178,6 @@ class Recording:
                          extra={k: v[keep].copy() for k, v in self.extra.items()}, source=self.source)
 
 
-def _as_vector(values, name: str, place: _Place) -> np.ndarray:
-    array = np.asarray(values)
-    if array.ndim == 2 and 1 in array.shape:
-        array = array.reshape(-1)
-    if array.ndim != 1 or array.dtype.kind not in "biuf":
-        place.fail(f"expected a 1-D numeric array, got shape {array.shape} of {array.dtype}", name)
-    return array.astype(float)
-
-
-# ------------------------------------------------------------------ checks
-def _check_metadata(meta: Mapping[str, str], place: _Place) -> None:
-    fmt = meta.get("format")
-    if fmt is None:
-        place.fail(f"missing metadata 'format'; expected '# format: {FORMAT}' before the header",
-                   "format", header=True)
-    if fmt != FORMAT:
-        what = "unknown format version" if fmt.startswith("pneusim-recording/") else "unknown format"
-        place.fail(f"{what} {fmt!r}; expected {FORMAT!r}", "format", key="format")
-    place.problem(rules.check_sample_time(meta.get("sample_time_s")))
-    if "loop" in meta and meta["loop"] not in ("open", "closed"):
-        place.fail(f"expected 'open' or 'closed', got {meta['loop']!r}", "loop", key="loop")
-    if "controller" in meta:
-        if meta["controller"] != "proportional":
-            place.fail(f"unknown controller {meta['controller']!r}; expected 'proportional'",
-                       "controller", key="controller")
-        for key in CONTROLLER_KEYS:
-            if key not in meta:
-                place.fail(f"'controller: proportional' needs the constant {key!r} in the metadata "
-                           f"(all of {', '.join(CONTROLLER_KEYS)})", key, key="controller")
-            _number(meta, key, place)
-        if float(meta["u_min_V"]) > float(meta["u_max_V"]):
-            place.fail("u_min_V must not exceed u_max_V", "u_min_V", key="u_min_V")
-
-
-def _number(meta: Mapping[str, str], key: str, place: _Place) -> float:
-    text = meta[key]
-    value = float(text) if _NUMBER.match(text) else math.nan
-    if not math.isfinite(value):
-        place.fail(f"expected a finite number, got {text!r}", key, key=key)
-    return value
-
-
-def _check_columns(cols: Mapping[str, np.ndarray], meta: Mapping[str, str], place: _Place,
-                   stroke_m: float | None, min_samples: int = MIN_SAMPLES) -> None:
-    required = REQUIRED_COLUMNS + (("reference_m",) if meta.get("loop") == "closed" else ())
-    for name in required:
-        if name not in cols:
-            why = " (required by 'loop: closed')" if name == "reference_m" else ""
-            place.fail(f"required column {name!r} missing{why}; columns present: {', '.join(cols)}",
-                       name, header=True)
-    n = cols["time_s"].shape[0]
-    for name, values in cols.items():
-        if values.shape[0] != n:
-            place.fail(f"has {values.shape[0]} samples but time_s has {n}", name)
-    if n < min_samples:
-        place.fail(f"only {n} samples; a recording needs at least {min_samples}", "time_s", header=True)
-    place.problem(rules.check_values(cols, required, None))
-    place.problem(rules.check_time(cols["time_s"], float(meta["sample_time_s"])))
-    place.problem(rules.check_values({"position_m": cols["position_m"]}, required, stroke_m))
-
-
 # ------------------------------------------------------------------ reading
 def read_recording(path: str | Path, stroke_m: float | None = None) -> Recording:
     """Read and check a ``pneusim-recording/1`` file (``.csv`` or ``.mat``).
@@ -324,10 +209,10 @@ def read_recording(path: str | Path, stroke_m: float | None = None) -> Recording
     if not path.is_file():
         raise InputFileError("file not found" if not path.exists() else "not a file", path=path)
     meta, cols, place = (_parse_csv if suffix == ".csv" else _parse_mat)(path)
-    _check_metadata(meta, place)
+    check_metadata(meta, place)
     if stroke_m is None and meta.get("rig"):
         stroke_m = rules.stroke_of(meta["rig"])
-    _check_columns(cols, meta, place, stroke_m=stroke_m)
+    check_columns(cols, meta, place, stroke_m=stroke_m)
     signals = {name: cols.pop(name) for name in SIGNALS if name in cols}
     return Recording(**signals, metadata=meta, extra=cols, source=str(path), first_row_line=place.first_row_line)
 
@@ -362,7 +247,7 @@ def _parse_csv(path: Path):
         raise InputFileError("no header row; expected a line of column names after the metadata",
                              path=path, line=h + 1)
     names = [name.strip() for name in lines[h].split(",")]
-    place = _Place(path, key_lines, h + 1, h + 2)
+    place = Place(path, key_lines, h + 1, h + 2)
     for i, name in enumerate(names):
         if not name:
             place.fail(f"column {i + 1} of the header has no name", f"column {i + 1}", header=True)
@@ -386,14 +271,14 @@ def _parse_csv(path: Path):
     return meta, cols, place
 
 
-def _parse_cells(cells: list[str], name: str, required: bool, place: _Place) -> np.ndarray:
+def _parse_cells(cells: list[str], name: str, required: bool, place: Place) -> np.ndarray:
     values = np.empty(len(cells))
     for r, cell in enumerate(cells):
         if not cell.strip():
             if required:
                 place.fail("empty cell in a required column; expected a number", name, row=r)
             values[r] = math.nan
-        elif _NUMBER.match(cell):
+        elif rules.NUMBER.match(cell):
             values[r] = float(cell)
         else:
             place.fail(f"{cell.strip()!r} is not a number; expected a decimal number with '.'", name, row=r)
@@ -413,7 +298,7 @@ def _parse_mat(path: Path):
         raise InputFileError("MATLAB v7.3 (HDF5) files are not supported; save with -v7", path=path) from None
     except Exception as exc:  # scipy raises several types for a damaged file
         raise InputFileError(f"not a readable MATLAB .mat file ({exc})", path=path) from None
-    place = _Place(path)
+    place = Place(path)
     meta: dict[str, str] = {}
     cols: dict[str, np.ndarray] = {}
     for name, value in raw.items():
