@@ -18,7 +18,6 @@ they are optimistic and are given as an indication only.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
@@ -26,6 +25,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import PneusimError
+from ..outputs import write_json_atomic
 from .data import FrictionTest
 from .laws import NOMINAL_LAW, PRESSURE_LAW, FrictionLaw
 
@@ -296,9 +296,9 @@ class FrictionStudy:
                 "seals": seals, "findings": self.findings_}
 
     def write_json(self, path) -> Path:
-        path = Path(path)
-        path.write_text(json.dumps(self.to_dict(), indent=2))
-        return path
+        """Write :meth:`to_dict` to ``path`` as JSON, atomically (a failed write leaves the previous file whole);
+        returns the path."""
+        return write_json_atomic(Path(path), self.to_dict(), indent=2)
 
     def _check_fitted(self):
         if not hasattr(self, "seals_"):

@@ -6,6 +6,7 @@ import json
 import numpy as np
 import pytest
 
+from pneusim import outputs
 from pneusim.cli import main
 from pneusim.friction import FrictionStudy, NOMINAL_LAW, PRESSURE_LAW, read_friction_test
 
@@ -85,6 +86,25 @@ def test_constant_friction_comes_back_nothing_missing(tmp_path):
     assert study.rms_pressure_N_ > 0.95 * study.rms_nominal_N_
     assert abs(study.seals_[0].pressure.theta[-1]) < 0.1
     assert "nothing is missing" in study.table()
+    _write_json_is_atomic(study, tmp_path / "friction.json")
+
+
+def _write_json_is_atomic(study, path):
+    """FrictionStudy.write_json writes to_dict as JSON; a write that fails (here the rename of a full disk)
+    leaves the previous file whole and no temporary file."""
+    path.write_text("previous")
+    assert study.write_json(path) == path and json.loads(path.read_text()) == json.loads(json.dumps(study.to_dict()))
+    path.write_text("previous")
+    before = sorted(p.name for p in path.parent.iterdir())
+
+    def full_disk(src, dst):
+        raise OSError(28, "No space left on device")
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(outputs.os, "replace", full_disk)
+        with pytest.raises(OSError):
+            study.write_json(path)
+    assert path.read_text() == "previous" and sorted(p.name for p in path.parent.iterdir()) == before
 
 
 def test_pressure_dependent_synthetic_friction_is_found_and_predicted(tmp_path):
