@@ -26,7 +26,8 @@ import sysid
 from ..metrics import error_stats
 from ..signals import build_experiment, input_signal, output_signal
 from ..simulate import simulate
-from ..plotting import Curve, compare_figure, fit_range, mark_clipped, model_styles, new_figure, save_figure
+from ..plotting import (Curve, compare_figure, fit_range, mark_clipped, model_styles, new_figure, parameter_axis,
+                        save_figure)
 from .figures import output_label, slug
 from .identify import clean_row
 
@@ -175,10 +176,21 @@ def generalisation_blocks(result, out) -> list:
 
 
 def _condition_item(c: dict) -> str:
-    """What a condition changes, and what the physical model was told."""
-    what = ", ".join(f"{k} = {v:g}" for k, v in c["rig_overrides"].items())
-    told = ", ".join(f"{k} = {v:.4g}" for k, v in c.get("told", {}).items())
-    return f"{c['name']}: {c['description'] or what}" + (f" (rig: {what}; physical model told {told})" if what else "")
+    """What a condition changes, and what the physical model was told, in the figures' engineering units."""
+    what = ", ".join(_quantity(k, v) for k, v in c["rig_overrides"].items())
+    told = ", ".join(_quantity(k, v) for k, v in c.get("told", {}).items())
+    said = f"rig: {what}" + (f"; physical model told {told}" if told else "")
+    return f"{c['name']}: {c['description'] or what}" + (f" ({said})" if what else "")
+
+
+def _quantity(key: str, value_si: float) -> str:
+    """A rig parameter's value in words and the unit the figures use (``supply pressure = 2 bar gauge`` for
+    ``supply_Pa = 301325``, see :func:`pneusim.plotting.parameter_axis`)."""
+    label, convert = parameter_axis(key)
+    words, _, unit = label.rpartition(" (")
+    unit = unit.removesuffix(")")
+    shown = float(convert(value_si)) if convert is not None else float(value_si)
+    return f"{words or key} = {shown:.4g}" + ("" if unit in ("", "-") else f" {unit}")
 
 
 def _condition_sentence(name: str, f: dict, gen: dict, phys: list) -> str:

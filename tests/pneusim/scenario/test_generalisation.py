@@ -25,6 +25,8 @@ def test_physical_model_holds_on_an_unseen_supply_where_arx_drops(data_dir, tmp_
     assert metrics["generalisation"]["conditions"][0]["rows"][0]["identifier"] == "ARX"
     report = (tmp_path / "report.md").read_text()
     assert "Generalisation: trained on one condition" in report
+    # the text gives the supply in bar gauge, as the figures do, not in Pa absolute
+    assert "physical model told supply pressure = 2 bar gauge" in report and "3.013e+05" not in report
     assert (tmp_path / "generalisation-supply-2-bar.png").exists() and (tmp_path / "generalisation.png").exists()
 
 
