@@ -15,7 +15,7 @@ from ..shutdown import EXIT_TERMINATED, sigterm_raises
 from .common import DURATION, add_overwrite_argument, number_type, results_folder
 
 #: what an MRE run writes into its folder (pneusim.mre.run.run_mre and its report)
-RUN_FILES = ("recording.csv", "summary.json", "coefficients.npz", "report.md", "*.png")
+RUN_FILES = ("recording.csv", "summary.json", "coefficients.npz", "index.html", "report.md", "*.png")
 
 CPU = number_type("a CPU number >= 0", 0, integer=True)
 PRIORITY = number_type("a SCHED_FIFO priority in 0..99 (0: normal scheduling)", 0, 99, integer=True)
@@ -29,7 +29,7 @@ def register(sub) -> None:
                     "plant. The recording is written row by row to OUT/recording.csv; Ctrl-C, SIGTERM, a fault or "
                     "too many overruns stop the loop with the valve at its null and everything so far on disk. A "
                     "report (identified transfer functions, h-step predictions, coefficient traces, timing) "
-                    "follows. An OUT holding an earlier run is refused (a measured run is never replaced) unless "
+                    "follows: OUT/index.html (self-contained) and report.md. An OUT holding an earlier run is refused (a measured run is never replaced) unless "
                     "--overwrite is given.")
     p.add_argument("file", metavar="FILE", help="MRE file (.toml), e.g. scenarios/mre-paper1.toml")
     p.add_argument("--plant", metavar="PLANT", default=None,
@@ -104,7 +104,7 @@ def run(args, run_mre=run_mre) -> int:
             print(f"pneusim mre: warning: {name}: the estimate is not finite (the recursion diverged); this "
                   "transfer function says nothing about the plant", file=sys.stderr)
     print(f"written: {out / 'recording.csv'}, summary.json, coefficients.npz"
-          + ("" if args.no_report else ", report.md"))
+          + ("" if args.no_report else ", index.html (the report; open this one), report.md"))
     if s["stop_reason"] in (STOP_INTERRUPTED, STOP_TERMINATED):
         print(f"{s['stop_reason']}: the valve was sent to its null; the recording holds every sample taken",
               file=sys.stderr)

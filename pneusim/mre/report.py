@@ -1,12 +1,13 @@
 """The report of an MRE run, like paper 1's results section, plus the loop's timing.
 
-``report.md`` holds how the run ended, the timing table (lateness p50/p99/max,
-overruns, latency, computation per sample), the plant's counters (lost and late
-datagrams, round trip), the identified discrete transfer function of every
-estimator (the form of paper 1's eqs. 9-11), and the error statistics of every
-h-step prediction (paper 1's Table 1 columns).  Figures: ``response.png``,
-``predictions.png`` (1/5/10-step), ``coefficients.png`` (theta over time),
-``timing.png`` (lateness over time, lateness histogram, computation per sample).
+One page, written twice through the shared page writer (:func:`pneusim.plotting.write_page`):
+``index.html`` (self-contained, the figures inlined: open this one) and ``report.md``.  It holds how
+the run ended, the timing table (lateness p50/p99/max, overruns, latency, computation per sample), the
+plant's counters (lost and late datagrams, round trip), the identified discrete transfer function of
+every estimator (the form of paper 1's eqs. 9-11), and the error statistics of every h-step prediction
+(paper 1's Table 1 columns).  Figures: ``response.png``, ``predictions.png`` (1/5/10-step),
+``coefficients.png`` (theta over time), ``timing.png`` (lateness over time, lateness histogram,
+computation per sample).
 """
 
 from __future__ import annotations
@@ -15,8 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..outputs import write_text_atomic
-from ..plotting import COLOURS, colour_for, ms, new_figure, padded_range, robust_range, save_figure
+from ..plotting import COLOURS, colour_for, ms, new_figure, padded_range, robust_range, save_figure, write_page
 
 __all__ = ["write_report"]
 
@@ -26,7 +26,8 @@ def _ms(x) -> str:
 
 
 def write_report(run, comp, spec) -> Path:
-    """Write ``report.md`` and the figures into ``run.out_dir``; returns the report's path."""
+    """Write ``index.html`` (self-contained), ``report.md`` and the figures into ``run.out_dir``; returns the
+    path of ``index.html``."""
     res, s, out = run.result, run.summary, Path(run.out_dir)
     t = np.arange(res.n_samples) * res.sample_time_s
     y = comp.to_output(res.position_m)
@@ -34,14 +35,12 @@ def write_report(run, comp, spec) -> Path:
     if res.predictions:
         figs += [_predictions_figure(out, t, y, res, comp), _coefficients_figure(out, t, res, comp)]
     figs.append(_timing_figure(out, t, res))
-    lines = _run_lines(s, spec, res.sample_time_s) + _timing_lines(s["timing"])
+    blocks = _run_blocks(s, spec, res.sample_time_s) + _timing_blocks(s["timing"])
     if s["plant_counts"]:
-        lines += ["## Plant counters", ""] + [f"* {k}: {v}" for k, v in s["plant_counts"].items()] + [""]
-    lines += _model_lines(s) + _prediction_lines(s, comp.output_unit)
-    lines += ["", "## Figures", ""] + [f"![{cap}]({f})\n\n*{cap}*\n" for cap, f in figs]
-    path = out / "report.md"
-    write_text_atomic(path, "\n".join(lines) + "\n")
-    return path
+        blocks += [("h", (2, "Plant counters")), ("ul", [f"{k}: {v}" for k, v in s["plant_counts"].items()])]
+    blocks += _model_blocks(s) + _prediction_blocks(s, comp.output_unit)
+    blocks += [("h", (2, "Figures"))] + [("fig", (f, cap)) for cap, f in figs]
+    return write_page(blocks, out, f"MRE run: {s['name']}", markdown="report.md", html_name="index.html")
 
 
 def _response_figure(out: Path, t, y, res, comp, s) -> tuple[str, str]:
@@ -140,52 +139,53 @@ def _timing_figure(out: Path, t, res) -> tuple[str, str]:
     return ("Timing: lateness against the deadline, its histogram, and computation per sample", "timing.png")
 
 
-def _run_lines(s: dict, spec: dict, ts: float) -> list[str]:
+def _run_blocks(s: dict, spec: dict, ts: float) -> list:
     """How the run went: plant, mode, why it stopped, samples, the recording."""
-    lines = [f"# MRE run: {s['name']}", "",
-             spec["mre"]["description"].strip() if spec["mre"]["description"] else "", "",
-             f"* plant: `{s['plant']}`; mode: {s['mode']} (pacing: {s['pacing']}); sample time {ts * 1e3:g} ms",
-             f"* stopped: **{s['stop_reason']}**" + (f" ({s['error']})" if s["error"] else ""),
-             f"* samples recorded: {s['samples']} of {s['samples_planned']}; held (plant gave no fresh "
+    blocks = [("h", (1, f"MRE run: {s['name']}"))]
+    description = (spec["mre"]["description"] or "").strip()
+    if description:
+        blocks.append(("p", description))
+    items = [f"plant: `{s['plant']}`; mode: {s['mode']} (pacing: {s['pacing']}); sample time {ts * 1e3:g} ms",
+             f"stopped: **{s['stop_reason']}**" + (f" ({s['error']})" if s["error"] else ""),
+             f"samples recorded: {s['samples']} of {s['samples_planned']}; held (plant gave no fresh "
              f"measurement): {s['held_samples']}; valve sent to null at the end: {'yes' if s['valve_to_null'] else 'no (a simulated plant has no valve to hold)'}",
-             f"* recording: `{s['recording']}` (pneusim-recording/1; `pneusim check` reads it)"]
+             f"recording: `{s['recording']}` (pneusim-recording/1; `pneusim check` reads it)"]
     if s["plant"].startswith("replay:"):
-        lines.append("* **open loop: the measurements are played back from the recording; the loop's commands "
+        items.append("**open loop: the measurements are played back from the recording; the loop's commands "
                      "do not act on them**")
-    return lines
+    return blocks + [("ul", items)]
 
 
-def _timing_lines(tm: dict) -> list[str]:
+def _timing_blocks(tm: dict) -> list:
     """The timing table (lateness, latency, computation per sample) and the overruns."""
-    lines = ["", "## Timing", "", "| quantity | p50 (ms) | p99 (ms) | max (ms) | mean (ms) |", "|---|---|---|---|---|"]
+    rows = []
     for key, label in (("lateness_s", "lateness (start - deadline)"), ("latency_s", "latency (measurement to command)"),
                        ("compute_s", "computation per sample")):
         v = tm[key]
-        lines.append(f"| {label} | {_ms(v and v['p50'])} | {_ms(v and v['p99'])} | {_ms(v and v['max'])} | "
-                     f"{_ms(v and v['mean'])} |")
-    lines += ["", f"Overruns (work ended after the next deadline): {tm['overruns']}; samples late by more than half "
-                  f"a sample: {tm['late_half_sample']} ({tm['late_half_sample_percent']:.3g} %).", ""]
-    return lines
+        rows.append([label, _ms(v and v["p50"]), _ms(v and v["p99"]), _ms(v and v["max"]), _ms(v and v["mean"])])
+    return [("h", (2, "Timing")),
+            ("table", (["quantity", "p50 (ms)", "p99 (ms)", "max (ms)", "mean (ms)"], rows)),
+            ("p", f"Overruns (work ended after the next deadline): {tm['overruns']}; samples late by more than half "
+                  f"a sample: {tm['late_half_sample']} ({tm['late_half_sample_percent']:.3g} %).")]
 
 
-def _model_lines(s: dict) -> list[str]:
+def _model_blocks(s: dict) -> list:
     """Each estimator's transfer function at the end of the run (the form of paper 1's eqs. 9-11)."""
-    lines = ["## Identified discrete transfer functions (end of run, form of paper 1 eqs. 9-11)", "",
-             "theta = [a1..an, b1..bn] of eq. 6; printed as G(z) = (b1 z^n + ... + bn z) / (z^n + a1 z^(n-1) + ... "
-             "+ an), the way the paper prints its results (B(z^-1)/A(z^-1) of eq. 6 is the same divided by z).", ""]
+    blocks = [("h", (2, "Identified discrete transfer functions (end of run, form of paper 1 eqs. 9-11)")),
+              ("p", "theta = [a1..an, b1..bn] of eq. 6; printed as G(z) = (b1 z^n + ... + bn z) / (z^n + a1 z^(n-1) "
+                    "+ ... + an), the way the paper prints its results (B(z^-1)/A(z^-1) of eq. 6 is the same "
+                    "divided by z).")]
     for name, mdl in s["identified"].items():
-        lines += [f"**{name}** (order {mdl['order']}):", "", "```text", mdl["transfer_function"],
-                  "theta = [" + " ".join(f"{v:.5g}" for v in mdl["theta"]) + "]", "```", ""]
-    return lines
+        blocks += [("p", f"**{name}** (order {mdl['order']}):"),
+                   ("code", mdl["transfer_function"] + "\ntheta = [" + " ".join(f"{v:.5g}" for v in mdl["theta"]) + "]")]
+    return blocks
 
 
-def _prediction_lines(s: dict, unit: str) -> list[str]:
+def _prediction_blocks(s: dict, unit: str) -> list:
     """The error statistics of every h-step prediction (paper 1's Table 1 columns)."""
-    lines = ["## Predictions (paper 1 Table 1 columns, whole run)", "",
-             f"| column | estimator | h | square error ({unit}^2) | error std ({unit}) | error min | error max |",
-             "|---|---|---|---|---|---|---|"]
-    for col, p in s["predictions"].items():
-        if "square_error" in p:
-            lines.append(f"| `{col}` | {p['estimator']} | {p['h']} | {p['square_error']:.4g} | {p['error_std']:.4g} | "
-                         f"{p['error_min']:.4g} | {p['error_max']:.4g} |")
-    return lines
+    rows = [[f"`{col}`", p["estimator"], p["h"], f"{p['square_error']:.4g}", f"{p['error_std']:.4g}",
+             f"{p['error_min']:.4g}", f"{p['error_max']:.4g}"]
+            for col, p in s["predictions"].items() if "square_error" in p]
+    return [("h", (2, "Predictions (paper 1 Table 1 columns, whole run)")),
+            ("table", (["column", "estimator", "h", f"square error ({unit}^2)", f"error std ({unit})", "error min",
+                        "error max"], rows))]

@@ -7,7 +7,7 @@
   ``plant_flag`` and every prediction ``yhat_*``);
 * ``coefficients.npz``: ``theta`` of every estimator after every sample, and the per-sample timing;
 * ``summary.json``: how the run ended, timing statistics, plant counters, identified models;
-* ``report.md`` and its figures (:mod:`pneusim.mre.report`).
+* the report, ``index.html`` (self-contained) and ``report.md``, and its figures (:mod:`pneusim.mre.report`).
 """
 
 from __future__ import annotations

@@ -2,6 +2,7 @@
 
 import copy
 import functools
+import html
 import io
 
 import numpy as np
@@ -71,6 +72,20 @@ def test_report_prints_the_identified_transfer_functions_and_timing(fast_run):
     theta = np.load(fast_run.out_dir / "coefficients.npz")["theta_rls_arma_order_4"]
     assert theta.shape == (300, 8)
     np.testing.assert_array_equal(theta[-1], fast_run.summary["identified"]["RLS ARMA order 4"]["theta"])
+
+
+def test_report_page_is_self_contained_and_says_what_report_md_says(fast_run):
+    """index.html is the same page as report.md (one list of blocks, two renderings), every figure inlined."""
+    page = (fast_run.out_dir / "index.html").read_text(encoding="utf-8")
+    text = (fast_run.out_dir / "report.md").read_text(encoding="utf-8")
+    figures = ("response.png", "predictions.png", "coefficients.png", "timing.png")
+    assert page.startswith("<!DOCTYPE html>") and page.count("data:image/png;base64,") == len(figures)
+    assert "src=\"response.png\"" not in page and "<table>" in page
+    for fig in figures:
+        assert f"]({fig})" in text
+    tf = fast_run.summary["identified"]["RLS ARMA order 4"]["transfer_function"]
+    for line in (tf, "computation per sample", "yhat_rls_arma_order_4_h5_cm", "MRE run: t"):
+        assert line in text and html.escape(line) in page, line
 
 
 class _Interrupting:
