@@ -352,7 +352,9 @@ def test_sigterm_stops_any_command_as_ctrl_c_does_and_leaves_no_partial_file(tmp
                             text=True)
     try:
         deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and len(list((out / "runs").glob("*.json"))) < 2:
+        # stored runs only: the glob also matches a run being written (its hidden ".NAME.tmp.json")
+        while time.monotonic() < deadline and len([p for p in (out / "runs").glob("*.json")
+                                                    if not p.name.startswith(".")]) < 2:
             time.sleep(0.05)
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=60)
