@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _format_rules as rules
+from . import format_rules as rules
 from .data import IDData
 from .errors import SysidError
 

@@ -1,5 +1,5 @@
 """The two readers of pneusim-recording/1 (``pneusim.recording.read_recording`` and
-``sysid.load_recording``) refuse the same files: one set of value rules (``sysid/_format_rules.py``)."""
+``sysid.load_recording``) refuse the same files: one set of value rules (``sysid/format_rules.py``)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ import sysid
 from pneusim.errors import InputFileError
 from pneusim.recording import read_recording
 from pneusim.rig import RIG_DIR, load_rig
-from sysid import _format_rules
+from sysid import format_rules
 
 HEAD = ["# format: pneusim-recording/1", "# sample_time_s: 0.01", "# rig: paper2-enfield", "# loop: closed"]
 NAMES = ["time_s", "reference_m", "valve_cmd_V", "position_m", "pressure_a_Pa", "pressure_b_Pa"]
@@ -100,6 +100,6 @@ def test_single_cell_changes_get_the_same_verdict(tmp_path, column, row, cell):
 
 def test_the_shared_rules_know_the_shipped_rigs_strokes():
     shipped = {p.stem for p in RIG_DIR.glob("*.toml")}
-    assert shipped == set(_format_rules.SHIPPED_STROKES_M)
+    assert shipped == set(format_rules.SHIPPED_STROKES_M)
     for name in shipped:
-        assert _format_rules.SHIPPED_STROKES_M[name] == load_rig(RIG_DIR / f"{name}.toml").stroke_m
+        assert format_rules.SHIPPED_STROKES_M[name] == load_rig(RIG_DIR / f"{name}.toml").stroke_m
