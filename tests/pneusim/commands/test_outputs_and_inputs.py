@@ -13,31 +13,12 @@ from pneusim.cli import main
 from pneusim.outputs import MANIFEST
 from pneusim.recording import read_recording, write_recording
 
+from mre_cases import mre_text
+
 ROOT = Path(__file__).resolve().parents[3]
 SCENARIO = ROOT / "tests" / "pneusim" / "scenario" / "data" / "tiny-open-loop.toml"
 SIM1 = ["simulate", "--rig", "paper1-mre", "--input", "steps", "--duration", "0.6"]
-MRE_TEXT = """
-[mre]
-name = "t"
-seed = 2
-duration_s = 0.3
-warmup_s = 0.0
-[rig]
-name = "paper1-mre"
-[controller]
-kind = "proportional"
-kp_V_per_m = 40.0
-[reference]
-kind = "steps"
-unit = "m"
-low = 0.02
-high = 0.05
-hold_s = [0.05, 0.1]
-[[identifiers]]
-name = "o3"
-kind = "rls"
-order = 3
-"""
+MRE_TEXT = mre_text(duration_s=0.3, seed=2)
 
 
 def _last_error(capsys) -> str:

@@ -17,6 +17,8 @@ from pneusim.mre.scenario import build_components, validate_mre
 from pneusim.plant import SimulatedPlant
 from pneusim.recording import read_recording
 
+from mre_cases import mre_text
+
 BASE = {
     "mre": {"name": "t", "duration_s": 0.3, "warmup_s": 0.05, "seed": 3, "overrun_budget": 1.0},
     "rig": {"name": "paper1-mre"},
@@ -174,27 +176,7 @@ def test_pid_anti_windup_leaves_saturation_at_once():
     assert u == pytest.approx(5.0 + 40.0 * -0.01 + integral)
 
 
-MRE_TEXT = """
-[mre]
-name = "t"
-duration_s = 0.2
-warmup_s = 0.0
-[rig]
-name = "paper1-mre"
-[controller]
-kind = "proportional"
-kp_V_per_m = 40.0
-[reference]
-kind = "steps"
-unit = "m"
-low = 0.02
-high = 0.05
-hold_s = [0.05, 0.1]
-[[identifiers]]
-name = "o3"
-kind = "rls"
-order = 3
-"""
+MRE_TEXT = mre_text(duration_s=0.2, seed=None)
 
 
 @pytest.mark.parametrize("edit, field", [

@@ -14,6 +14,8 @@ from pneusim.cli import main
 from pneusim.errors import PneusimError
 from pneusim.mre.scenario import build_components, validate_mre
 
+from mre_cases import rig_server_thread
+
 BASE = {
     "mre": {"name": "t", "duration_s": 0.3, "warmup_s": 0.05, "seed": 3, "overrun_budget": 1.0},
     "rig": {"name": "paper1-mre"},
@@ -78,35 +80,24 @@ def test_a_recording_its_own_check_refuses_ends_the_run_with_an_error(tmp_path, 
 
 def test_sigterm_stops_the_loop_with_the_valve_at_null_and_the_summary_written(tmp_path):
     """``pneusim mre --plant udp:...`` on a rig server: SIGTERM ends the session with the valve at null."""
-    import threading
-
-    from pneusim.mre.rig_server import RigServer
-    from pneusim.plant import SimulatedPlant
-    from pneusim.rig import load_rig
-
-    server = RigServer(SimulatedPlant(load_rig("paper1-mre"), seed=3), "127.0.0.1", 0, watchdog_s=5.0, null_V=5.0)
-    stop = threading.Event()
-    thread = threading.Thread(target=server.serve, kwargs={"stop": stop}, daemon=True)
-    thread.start()
     f = tmp_path / "m.toml"
     f.write_text(_toml({"duration_s": 60.0}))
     out = tmp_path / "o"
-    proc = subprocess.Popen([sys.executable, "-m", "pneusim.cli", "mre", str(f), "--realtime", "--rt-priority", "0",
-                             "--plant", f"udp:127.0.0.1:{server.address[1]}", "--out", str(out), "--no-report",
-                             "--no-status"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and server.stats.commands < 300:    # the loop runs
-            time.sleep(0.05)
-        assert server.stats.commands >= 300 and server.active
-        proc.send_signal(signal.SIGTERM)
-        stdout, stderr = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-        stop.set()
-        thread.join(5)
-        server.close()
+    with rig_server_thread(seed=3, watchdog_s=5.0) as (server, _):
+        proc = subprocess.Popen([sys.executable, "-m", "pneusim.cli", "mre", str(f), "--realtime", "--rt-priority",
+                                 "0", "--plant", f"udp:127.0.0.1:{server.address[1]}", "--out", str(out),
+                                 "--no-report", "--no-status"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
+        try:
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline and server.stats.commands < 300:    # the loop runs
+                time.sleep(0.05)
+            assert server.stats.commands >= 300 and server.active
+            proc.send_signal(signal.SIGTERM)
+            stdout, stderr = proc.communicate(timeout=60)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
     assert proc.returncode == 128 + signal.SIGTERM, stderr
     assert "Traceback" not in stderr and "terminated (SIGTERM): the valve was sent to its null" in stderr
     # the loop said goodbye: the rig's valve is at its null, not at the last command, and not by the watchdog

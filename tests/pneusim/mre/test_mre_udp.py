@@ -1,55 +1,27 @@
 """The rig server over UDP (127.0.0.1 only): exact agreement with the local loop, recovery from lost
 datagrams (counted), and the watchdog."""
 
-import threading
 import time
 
 import numpy as np
 import pytest
 
 from pneusim.loop import run_loop
-from pneusim.mre.rig_server import RigServer
 from pneusim.mre.udp import CMD, UdpPlant, pack
 from pneusim.plant import Measurement, SimulatedPlant
 from pneusim.rig import load_rig
 from pneusim.controller import ProportionalController
 
+from mre_cases import mre_text, rig_server_thread, serve_rig_process
+
 N = 160
-MRE_TEXT = """
-[mre]
-name = "t"
-seed = 2
-duration_s = 0.2
-warmup_s = 0.0
-[rig]
-name = "paper1-mre"
-[controller]
-kind = "proportional"
-kp_V_per_m = 40.0
-[reference]
-kind = "steps"
-unit = "m"
-low = 0.02
-high = 0.05
-hold_s = [0.05, 0.1]
-[[identifiers]]
-name = "o3"
-kind = "rls"
-order = 3
-"""
+MRE_TEXT = mre_text(duration_s=0.2, seed=2)
 
 
 @pytest.fixture
 def server():
-    rig = load_rig("paper1-mre")
-    srv = RigServer(SimulatedPlant(rig, seed=5), "127.0.0.1", 0, watchdog_s=0.05, null_V=5.0)
-    stop = threading.Event()
-    thread = threading.Thread(target=srv.serve, kwargs={"stop": stop}, daemon=True)
-    thread.start()
-    yield srv
-    stop.set()
-    thread.join(5)
-    srv.close()
+    with rig_server_thread(seed=5, watchdog_s=0.05) as (srv, _):
+        yield srv
 
 
 class _Faulty:
@@ -133,18 +105,7 @@ def test_watchdog_drives_the_valve_to_null_when_the_loop_goes_silent(server):
 
 def test_serve_rig_command_line_session_over_udp(tmp_path):
     """``pneusim serve-rig`` in another process and ``pneusim mre --plant udp:...`` give the local run."""
-    import socket
-    import subprocess
-    import sys
-
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    srv = subprocess.Popen([sys.executable, "-m", "pneusim.cli", "serve-rig", "--rig", "paper1-mre", "--port",
-                            str(port), "--seed", "2", "--sessions", "1"], stdout=subprocess.PIPE, text=True)
-    try:
-        assert "on udp 127.0.0.1" in srv.stdout.readline()
+    with serve_rig_process("--seed", "2", "--sessions", "1") as (srv, port):
         mre = tmp_path / "m.toml"
         mre.write_text(MRE_TEXT, encoding="utf-8")
         from pneusim.cli import main
@@ -152,9 +113,6 @@ def test_serve_rig_command_line_session_over_udp(tmp_path):
                      "--no-report"]) == 0
         assert main(["mre", str(mre), "--fast", "--out", str(tmp_path / "s"), "--no-report"]) == 0
         out, _ = srv.communicate(timeout=20)
-    finally:
-        if srv.poll() is None:
-            srv.kill()
     assert "commands 199, lost commands 0" in out and "session ended by the loop: valve to null" in out
     from pneusim.recording import read_recording
     u, loc = read_recording(tmp_path / "u" / "recording.csv"), read_recording(tmp_path / "s" / "recording.csv")

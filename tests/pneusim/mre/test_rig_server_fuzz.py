@@ -8,17 +8,15 @@ import signal
 import socket
 import struct
 import subprocess
-import sys
-import threading
 import time
 
 import pytest
 
 from pneusim.errors import PneusimError
-from pneusim.mre.rig_server import RigServer
 from pneusim.mre.udp import BYE, CMD, FORMAT, HELLO, MEAS, READY, UdpPlant, pack, unpack
-from pneusim.plant import SimulatedPlant
 from pneusim.rig import load_rig
+
+from mre_cases import rig_server_thread, serve_rig_process
 
 NAN, INF = float("nan"), float("inf")
 TS = 0.001        # paper1-mre's sample time
@@ -31,17 +29,9 @@ def _hello(position=0.02, command=5.0, t0=0.0, sample_time=TS, stamp=1.0):
 @pytest.fixture
 def served():
     """A server in a thread (watchdog 1 s, periodic report every 0.05 s into a list) and its thread."""
-    rig = load_rig("paper1-mre")
-    srv = RigServer(SimulatedPlant(rig, seed=1), "127.0.0.1", 0, watchdog_s=1.0, null_V=5.0)
     reports = []
-    stop = threading.Event()
-    thread = threading.Thread(target=srv.serve, kwargs={"stop": stop, "report": reports.append,
-                                                        "report_interval_s": 0.05}, daemon=True)
-    thread.start()
-    yield srv, thread, reports
-    stop.set()
-    thread.join(5)
-    srv.close()
+    with rig_server_thread(seed=1, watchdog_s=1.0, report=reports.append, report_interval_s=0.05) as (srv, thread):
+        yield srv, thread, reports
 
 
 def _socket():
@@ -175,23 +165,10 @@ def test_a_hello_with_a_nan_sample_time_is_refused(served):
     a.close()
 
 
-def _free_port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
 def test_serve_rig_survives_the_issues_datagrams_and_prints_its_counts_on_sigterm():
     """``pneusim serve-rig``: a HELLO at position NaN (and inf, -1, 1e308, t0 NaN/inf) then a command used to
     end it with a traceback; it must stay up, and SIGTERM must print the statistics as Ctrl-C does."""
-    port = _free_port()
-    srv = subprocess.Popen([sys.executable, "-m", "pneusim.cli", "serve-rig", "--rig", "paper1-mre", "--port",
-                            str(port), "--report-interval", "0.2"], stdout=subprocess.PIPE,
-                           stderr=subprocess.PIPE, text=True)
-    try:
-        assert "on udp 127.0.0.1" in srv.stdout.readline()
+    with serve_rig_process("--report-interval", "0.2", stderr=subprocess.PIPE) as (srv, port):
         a = _socket()
         bad = [struct.pack(FORMAT, b"PNRS", 1, 1, 0, 0, 1.0, 0.001, NAN, 5.0, 0.0)]
         bad += [_hello(position=v) for v in (INF, -1.0, 1e308)] + [_hello(t0=v) for v in (NAN, INF)]
@@ -204,9 +181,6 @@ def test_serve_rig_survives_the_issues_datagrams_and_prints_its_counts_on_sigter
         assert srv.poll() is None, srv.stderr.read()
         srv.send_signal(signal.SIGTERM)
         out, err = srv.communicate(timeout=20)
-    finally:
-        if srv.poll() is None:
-            srv.kill()
     assert srv.returncode == 0, err       # a server stopped as asked, as on Ctrl-C
     assert "Traceback" not in err
     assert "invalid 6" in out and "stray 6" in out and "malformed 1" in out and "valve at 5 V" in out
