@@ -93,13 +93,7 @@ def executor_map(func: Callable, tasks: Sequence[tuple], lost: Callable, workers
                 if pool is None:
                     pool = stack.enter_context(local_pool(workers))
                 futures = {pool.submit(func, *t): t for t in tasks}
-                for fut in futures_completed(futures):
-                    try:
-                        yield fut.result()
-                    except Exception as exc:  # noqa: BLE001 - e.g. BrokenProcessPool
-                        yield lost(futures[fut], exc)
-                    if bar:
-                        bar.update()
+                yield from _results_or_lost(futures, futures_completed(futures), lost, bar)
     finally:
         if bar:
             bar.close()
@@ -112,14 +106,21 @@ def _dask_map(func, tasks, lost, workers, dask, bar) -> Iterator:
     client, cluster = dask_client(dask, workers)
     try:
         futures = {client.submit(func, *t, pure=False): t for t in tasks}
-        for fut in as_completed(futures):
-            try:
-                yield fut.result()
-            except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker
-                yield lost(futures[fut], exc)
-            if bar:
-                bar.update()
+        yield from _results_or_lost(futures, as_completed(futures), lost, bar)
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _results_or_lost(futures: dict, completed: Iterator, lost: Callable, bar) -> Iterator:
+    """Each future's result as ``completed`` (an executor's or Dask's ``as_completed`` over ``futures``, a
+    ``{future: task}`` dict) hands it over, or ``lost(task, exc)`` for a future that raised (its worker died:
+    ``BrokenProcessPool``, Dask's ``KilledWorker``); the progress bar ``bar`` (or None) counts each."""
+    for fut in completed:
+        try:
+            yield fut.result()
+        except Exception as exc:  # noqa: BLE001 - e.g. BrokenProcessPool, KilledWorker
+            yield lost(futures[fut], exc)
+        if bar:
+            bar.update()
