@@ -27,6 +27,12 @@ class Controller(Protocol):
         """Recording metadata describing this controller (``controller`` and its constants)."""
 
 
+def _check_output_limits(u_min_V: float, u_max_V: float) -> None:
+    """The valve command's limits of a controller, V: the lower one below the upper one."""
+    if not u_min_V < u_max_V:
+        raise PneusimError(f"controller: u_min_V ({u_min_V}) must be below u_max_V ({u_max_V})")
+
+
 @dataclass
 class ProportionalController:
     """``u = clip(u0_V + kp_V_per_m * (reference_m - position_m), u_min_V, u_max_V)``.
@@ -40,8 +46,7 @@ class ProportionalController:
     u_max_V: float = 10.0
 
     def __post_init__(self):
-        if not self.u_min_V < self.u_max_V:
-            raise PneusimError(f"controller: u_min_V ({self.u_min_V}) must be below u_max_V ({self.u_max_V})")
+        _check_output_limits(self.u_min_V, self.u_max_V)
 
     def reset(self) -> None:
         pass
@@ -93,8 +98,7 @@ class PIDController:
     derivative_filter_s: float = 0.0
 
     def __post_init__(self):
-        if not self.u_min_V < self.u_max_V:
-            raise PneusimError(f"controller: u_min_V ({self.u_min_V}) must be below u_max_V ({self.u_max_V})")
+        _check_output_limits(self.u_min_V, self.u_max_V)
         if not self.sample_time_s > 0:
             raise PneusimError(f"controller: sample_time_s must be positive, got {self.sample_time_s}")
         if self.derivative_filter_s < 0:
