@@ -131,6 +131,9 @@ def number_type(what: str, low: float | None = None, high: float | None = None, 
 DURATION = number_type("a duration in s > 0", 0.0, low_included=False)
 SEED = number_type("a whole number >= 0 (seed)", 0, 2**32 - 1, integer=True)
 NOISE_SCALE = number_type("a finite number >= 0 (0: no noise)", 0.0)
+#: the real-time options of the loop (``pneusim mre``) and of the rig server (``pneusim serve-rig``)
+CPU = number_type("a CPU number >= 0", 0, integer=True)
+PRIORITY = number_type("a SCHED_FIFO priority in 0..99 (0: normal scheduling)", 0, 99, integer=True)
 
 
 # ---------------------------------------------------------------- rig of a recording

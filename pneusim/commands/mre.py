@@ -12,13 +12,10 @@ from ..mre.rt import DEFAULT_PRIORITY, RealtimeSettings
 from ..mre.run import run_mre
 from ..mre.scenario import load_mre
 from ..shutdown import EXIT_TERMINATED, sigterm_raises
-from .common import DURATION, add_overwrite_argument, number_type, results_folder
+from .common import CPU, DURATION, PRIORITY, add_overwrite_argument, results_folder
 
 #: what an MRE run writes into its folder (pneusim.mre.run.run_mre and its report)
 RUN_FILES = ("recording.csv", "summary.json", "coefficients.npz", "index.html", "report.md", "*.png")
-
-CPU = number_type("a CPU number >= 0", 0, integer=True)
-PRIORITY = number_type("a SCHED_FIFO priority in 0..99 (0: normal scheduling)", 0, 99, integer=True)
 
 
 def register(sub) -> None:

@@ -8,14 +8,13 @@ from ..mre.rig_server import RigServer
 from ..mre.rt import DEFAULT_PRIORITY, RealtimeScope, RealtimeSettings
 from ..plant import SimulatedPlant
 from ..shutdown import Terminated, sigterm_raises
-from .common import NOISE_SCALE, SEED, add_rig_arguments, number_type, parse_effects, rig_with_overrides
+from .common import (CPU, NOISE_SCALE, PRIORITY, SEED, add_rig_arguments, number_type, parse_effects,
+                     rig_with_overrides)
 
 PORT = number_type("a UDP port in 1..65535", 1, 65535, integer=True)
-WATCHDOG = number_type("a time in s > 0", 0.0, low_included=False)
-INTERVAL = number_type("a time in s > 0", 0.0, low_included=False)
+#: the watchdog's silence and the report interval
+SECONDS = number_type("a time in s > 0", 0.0, low_included=False)
 SESSIONS = number_type("a whole number >= 1", 1, integer=True)
-CPU = number_type("a CPU number >= 0", 0, integer=True)
-PRIORITY = number_type("a SCHED_FIFO priority in 0..99 (0: normal scheduling)", 0, 99, integer=True)
 
 
 def register(sub) -> None:
@@ -31,11 +30,11 @@ def register(sub) -> None:
     add_rig_arguments(p, rig_required=True)
     p.add_argument("--port", type=PORT, required=True, help="UDP port to listen on")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
-    p.add_argument("--watchdog", type=WATCHDOG, default=0.1, metavar="S",
+    p.add_argument("--watchdog", type=SECONDS, default=0.1, metavar="S",
                    help="silence in s after which the valve goes to its null (default 0.1)")
     p.add_argument("--seed", type=SEED, default=0, help="seed of the sensor noise (default 0)")
     p.add_argument("--noise-scale", type=NOISE_SCALE, default=1.0, metavar="F", help="sensor noise scale (default 1)")
-    p.add_argument("--report-interval", type=INTERVAL, default=10.0, metavar="S",
+    p.add_argument("--report-interval", type=SECONDS, default=10.0, metavar="S",
                    help="print the counts every S seconds when they changed (default 10)")
     p.add_argument("--sessions", type=SESSIONS, default=None, metavar="N",
                    help="exit after N sessions have ended (default: serve until Ctrl-C)")
