@@ -33,7 +33,7 @@ import numpy as np
 from ..controller import PIDController, ProportionalController
 from ..errors import InputFileError, PneusimError
 from ..experiment import MAX_SAMPLES
-from ..online import PaperRLS, SysidRLS
+from ..online import PaperRLS, SysidRLS, check_rls_settings
 from ..plausibility import check_noise_scale
 from ..rig import load_rig
 from ..signals import OUTPUT_UNITS, build_signal, output_scale, sensor_gain, validate_signal
@@ -310,18 +310,5 @@ def check_identifiers(where: str, idents: list[dict], n_samples: int, max_abs_y:
     """Each identifier's settings against the run: horizons within its ``n_samples`` samples, and its forgetting
     factor and initial covariance against signals up to ``max_abs_y`` and ``max_abs_u`` (identifier units), by
     :func:`sysid.check_rls_options` -- the checks of :class:`sysid.RecursiveARX`, the same recursion."""
-    import sysid   # about a second (SciPy's signal module): the components are built once, before the loop
-
     for i, it in enumerate(idents):
-        prefix = f"identifiers[{i}]"
-        too_long = [h for h in it["horizons"] if h >= n_samples]
-        if too_long:
-            fail(where, f"{prefix}.horizons", f"expected horizons shorter than the run's {n_samples} samples, got "
-                                              f"{too_long[0]} (no prediction that far ahead would be scored)")
-        try:
-            sysid.check_rls_options([it["order"], it["order"], 1], it["forgetting"], it["initial_covariance"],
-                                    max_abs_y=max_abs_y, max_abs_u=max_abs_u)
-        except sysid.SysidError as exc:
-            text = str(exc)
-            key = next((k for k in ("forgetting", "initial_covariance") if text.startswith(k)), None)
-            fail(where, f"{prefix}.{key}" if key else prefix, text.rstrip("."))
+        check_rls_settings(where, f"identifiers[{i}]", it, n_samples, max_abs_y, max_abs_u)

@@ -24,8 +24,9 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import PneusimError
+from ..tomlcheck import fail
 
-__all__ = ["PaperRLS", "SysidRLS", "make_rls"]
+__all__ = ["PaperRLS", "SysidRLS", "make_rls", "check_rls_settings"]
 
 
 class PaperRLS:
@@ -150,3 +151,29 @@ def make_rls(order, forgetting, initial_covariance, horizons, engine: str = "aut
         if engine == "sysid":
             raise PneusimError("engine = 'sysid' needs sysid.RecursiveARX, which is not available")
     return PaperRLS(order, forgetting, initial_covariance, horizons)
+
+
+def check_rls_settings(where, prefix: str, ident: dict, n_samples: int, max_abs_y: float,
+                       max_abs_u: float | None) -> None:
+    """One online (``rls``) identifier's settings of a scenario or MRE file against its run.
+
+    Its horizons must be shorter than the run's ``n_samples`` samples (no prediction farther ahead could be
+    scored), and its forgetting factor and initial covariance must give an estimate on signals up to
+    ``max_abs_y`` and ``max_abs_u`` (identifier units; None: not bounded) -- :func:`sysid.check_rls_options`,
+    the checks of :class:`sysid.RecursiveARX`, the same recursion (``forgetting = 1e-300`` or
+    ``initial_covariance = 1e308`` give none).  A fault raises the one-line error naming ``where`` and the
+    field under ``prefix`` (e.g. ``identifiers[0].forgetting``).
+    """
+    import sysid   # about a second (SciPy's signal module); a file with identifiers imports it to run them anyway
+
+    too_long = [h for h in ident["horizons"] if h >= n_samples]
+    if too_long:
+        fail(where, f"{prefix}.horizons", f"expected horizons shorter than the run's {n_samples} samples, got "
+                                          f"{too_long[0]} (no prediction that far ahead would be scored)")
+    try:
+        sysid.check_rls_options([ident["order"], ident["order"], 1], ident["forgetting"], ident["initial_covariance"],
+                                max_abs_y=max_abs_y, max_abs_u=max_abs_u)
+    except sysid.SysidError as exc:
+        text = str(exc)
+        key = next((k for k in ("forgetting", "initial_covariance") if text.startswith(k)), None)
+        fail(where, f"{prefix}.{key}" if key else prefix, text.rstrip("."))

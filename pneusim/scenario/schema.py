@@ -19,6 +19,7 @@ from typing import Any
 from ..errors import InputFileError, PneusimError
 from ..experiment import MAX_SAMPLES
 from ..model import parse_effect_text
+from ..online import check_rls_settings
 from ..plausibility import check_noise_scale
 from ..rig import load_rig
 from ..signals import OUTPUT_UNITS, SIGNAL_KINDS, output_scale, validate_signal
@@ -361,8 +362,6 @@ def _validate_online_identifiers(where, data, rig, n_samples: int) -> None:
     """The online (``rls``) identifiers against the run: horizons shorter than it, and the forgetting factor and
     initial covariance against the signals they will see (:func:`sysid.check_rls_options`, the checks of
     :class:`sysid.RecursiveARX`: ``forgetting = 1e-300`` or ``initial_covariance = 1e308`` give no estimate)."""
-    import sysid   # about a second; a scenario with identifiers imports it to run them anyway
-
     d = data["data"]
     scale, y_off, u_off = output_scale(rig, d["output_unit"]), float(d["output_offset"]), float(d["input_offset"])
     y_max = max(abs(y_off), abs(rig.stroke_m * scale - y_off))
@@ -371,18 +370,7 @@ def _validate_online_identifiers(where, data, rig, n_samples: int) -> None:
     for i, ident in enumerate(data["identifiers"]):
         if ident["kind"] != "rls":
             continue
-        prefix = f"identifiers[{i}]"
-        too_long = [h for h in ident["horizons"] if h >= n_samples]
-        if too_long:
-            fail(where, f"{prefix}.horizons", f"expected horizons shorter than the run's {n_samples} samples, got "
-                                              f"{too_long[0]} (no prediction that far ahead would be scored)")
-        try:
-            sysid.check_rls_options([ident["order"], ident["order"], 1], ident["forgetting"],
-                                    ident["initial_covariance"], max_abs_y=y_max, max_abs_u=u_max)
-        except sysid.SysidError as exc:
-            text = str(exc)
-            key = next((k for k in ("forgetting", "initial_covariance") if text.startswith(k)), None)
-            fail(where, f"{prefix}.{key}" if key else prefix, text.rstrip("."))
+        check_rls_settings(where, f"identifiers[{i}]", ident, n_samples, y_max, u_max)
 
 
 def get_dotted(data: dict, key: str) -> Any:
