@@ -114,15 +114,19 @@ lambdas = (0.99, 0.999)
 res2 = simulate_online(rig, exp2, {f"lambda {lam}": PaperRLS(4, lam, 1000.0) for lam in lambdas},
                        lambda p: 100.0 * p, lambda u, k: u, seed=2)
 y2, u2 = 100.0 * res2.recording.position_m, res2.recording.valve_cmd_V
-# replay the same data through fresh estimators to record trace(P) at every sample
-traces = {}
-for lam in lambdas:
-    est, tr = PaperRLS(4, lam, 1000.0), np.empty(n2)
-    for k in range(n2):
-        est.update(y2[k])
-        est.add_input(u2[k])
+
+
+def trace_of_P(lam, y, u):
+    """Replay the same data (y, u) through a fresh estimator of forgetting factor lam: trace(P) at every sample."""
+    est, tr = PaperRLS(4, lam, 1000.0), np.empty(len(y))
+    for k in range(len(y)):
+        est.update(y[k])
+        est.add_input(u[k])
         tr[k] = np.trace(est.P)
-    traces[lam] = tr
+    return tr
+
+
+traces = {lam: trace_of_P(lam, y2, u2) for lam in lambdas}
 t2 = res2.recording.time_s
 fig, ax = new_figure(2, 1, title="Covariance wind-up: while the piston rests, trace(P) grows as lambda^-k, far faster "
                                  "for lambda 0.99 than 0.999", size=(9, 4.6), sharex=True)
@@ -152,11 +156,7 @@ res_l = simulate_online(rig, exp, {lam: PaperRLS(4, lam, 1000.0) for lam in swee
 error = {lam: float(np.nanmean((y[200:] - res_l.predictions[(lam, 1)][200:]) ** 2)) for lam in sweep}
 windup = {}
 for lam in sweep:
-    est, tr = PaperRLS(4, lam, 1000.0), np.empty(n2)
-    for k in range(n2):
-        est.update(y2[k])
-        est.add_input(u2[k])
-        tr[k] = np.trace(est.P)
+    tr = trace_of_P(lam, y2, u2)
     windup[lam] = float(np.nanmax(tr) / tr[200]) if np.isfinite(tr).all() else np.inf
 memory = np.array([1.0 / (1.0 - lam) for lam in sweep])        # samples the estimator remembers
 best = min(error, key=error.get)
