@@ -29,6 +29,8 @@ from pneusim.plotting import figure_problems
 from pneusim.recording import write_recording
 from pneusim.simulate import simulate
 
+from ablation_cases import DEADBAND, write_tiny_ablation
+
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
 DATA = ROOT / "tests" / "pneusim" / "scenario" / "data"
@@ -172,27 +174,7 @@ def test_sweep_and_ablation_figures_of_a_run(tmp_path):
     """A tiny ablation through the sweep: its summary figures and ablation.png."""
     from pneusim.scenario.sweep import load_sweep, run_sweep
 
-    path = tmp_path / "ablation.toml"
-    path.write_text(f"""
-[sweep]
-name = "tiny"
-scenario = "{(SCENARIOS / 'paper2-multisine.toml').as_posix()}"
-seeds = [2]
-[base]
-"experiment.duration_s" = 6.0
-"identifiers.1.enabled" = false
-"identifiers.2.enabled" = false
-"identifiers.3.enabled" = false
-"identifiers.4.enabled" = false
-[ablation]
-metric = "fit_percent"
-physical_levels = []
-[[ablation.cases]]
-effect = "valve_deadband"
-level = "high"
-params = {{ deadband_V = 0.5 }}
-source = "10 % of the half span"
-""")
+    path = write_tiny_ablation(tmp_path, DEADBAND, duration_s=6.0)
     out = tmp_path / "out"
     with checked_figures() as found:
         info = run_sweep(load_sweep(path), out, workers=0, progress=False)

@@ -11,6 +11,8 @@ from pneusim.model import EFFECTS
 from pneusim.scenario.ablation import LEVELS, PHYSICAL_EFFECT, PHYSICAL_NOMINAL
 from pneusim.scenario.sweep import expand_runs, load_sweep, run_sweep
 
+from ablation_cases import DEADBAND, write_tiny_ablation
+
 
 @pytest.mark.parametrize("name, metric", [("ablation-paper1.toml", "square_error"),
                                           ("ablation-paper2.toml", "fit_percent")])
@@ -32,52 +34,21 @@ def test_shipped_ablations_cover_every_effect_at_three_levels(scenarios_dir, nam
     assert len(expand_runs(sweep)) == len(ab["labels"])                # one run per case and part
 
 
-def _write(tmp_path, scenarios_dir, cases, extra=""):
-    text = f"""
-[sweep]
-name = "tiny"
-scenario = "{(scenarios_dir / 'paper2-multisine.toml').as_posix()}"
-seeds = [2]
-[base]
-"experiment.duration_s" = 10.0
-"identifiers.1.enabled" = false
-"identifiers.2.enabled" = false
-"identifiers.3.enabled" = false
-"identifiers.4.enabled" = false
-[ablation]
-metric = "fit_percent"
-physical_levels = []
-{extra}
-{cases}
-"""
-    path = tmp_path / "ablation.toml"
-    path.write_text(text)
-    return path
-
-
-_DEADBAND = """[[ablation.cases]]
-effect = "valve_deadband"
-level = "high"
-params = { deadband_V = 0.5 }
-source = "10 % of the half span"
-"""
-
-
 @pytest.mark.parametrize("case, field", [
-    (_DEADBAND.replace('"valve_deadband"', '"valve_deadzone"'), "ablation.cases[0].effect"),
-    (_DEADBAND.replace('"high"', '"extreme"'), "ablation.cases[0].level"),
-    (_DEADBAND.replace("deadband_V", "band_V"), "ablation.cases[0].params"),
-    (_DEADBAND.replace('source = "10 % of the half span"', ""), "ablation.cases[0].source"),
+    (DEADBAND.replace('"valve_deadband"', '"valve_deadzone"'), "ablation.cases[0].effect"),
+    (DEADBAND.replace('"high"', '"extreme"'), "ablation.cases[0].level"),
+    (DEADBAND.replace("deadband_V", "band_V"), "ablation.cases[0].params"),
+    (DEADBAND.replace('source = "10 % of the half span"', ""), "ablation.cases[0].source"),
 ])
-def test_bad_ablation_cases_name_the_field(tmp_path, scenarios_dir, case, field):
-    path = _write(tmp_path, scenarios_dir, case)
+def test_bad_ablation_cases_name_the_field(tmp_path, case, field):
+    path = write_tiny_ablation(tmp_path, case)
     with pytest.raises(InputFileError) as err:
         load_sweep(path)
     assert str(path) in str(err.value) and field in str(err.value)
 
 
-def test_tiny_ablation_dead_band_costs_the_arx_fit(tmp_path, scenarios_dir):
-    path = _write(tmp_path, scenarios_dir, _DEADBAND)
+def test_tiny_ablation_dead_band_costs_the_arx_fit(tmp_path):
+    path = write_tiny_ablation(tmp_path, DEADBAND)
     sweep = load_sweep(path)
     out = tmp_path / "out"
     info = run_sweep(sweep, out, workers=0, progress=False)
