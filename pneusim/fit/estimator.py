@@ -16,19 +16,26 @@
    (:func:`.constrained.solve_ipopt_exact`).  A fit that ends well above its pre-fit's residual, or above
    noise after a pre-fit above noise, is retried from the next start (:data:`.rules.START_FACTORS`; the best
    kept; a start whose pre-fit ends where an earlier one's did is not fitted again), unless the pre-fit
-   itself ends more than :data:`.rules.MODEL_SHORT` times above noise (the model lacks physics there);
+   itself ends more than :data:`.rules.MODEL_SHORT` times above noise (the model lacks physics there).  Where
+   the first start's fit ends above noise, the prediction-error route (4.) runs before the next start, and no
+   other start is tried where it brings the fit to noise;
 4. **rescue routes** — where the best fit still ends above noise, but neither it nor every pre-fit more than
    :data:`.rules.MODEL_SHORT` times above it: segment starts tracked by an extended Kalman filter
    (:func:`.rescue_routes.tracked_route`, ``solver["tracked_route"]``); where it still ends above noise
-   (however far): the prediction-error fit from the start, then those tracked starts
-   (:func:`.rescue_routes.prediction_error_route`, ``solver["prediction_error_route"]``); each kept when lower;
+   (however far) and it has not run yet: the prediction-error fit from the start (from nearby starts in turn
+   until one reaches the innovations' noise level: where the filter lands is a draw of the last bits of its
+   arithmetic), then those tracked starts (:func:`.rescue_routes.prediction_error_route`,
+   ``solver["prediction_error_route"]``); each kept when lower.  A route's fit is finished on the exact
+   problem by Gauss-Newton settling where it ends at noise, else by IPOPT (:meth:`.run.FitRun.finish`);
 5. **uncertainty** — the Gauss-Newton covariance of the estimates with the segment states as nuisance
    parameters, each signal weighted by its residual standard deviation (:mod:`.uncertainty`);
 6. **validation** — the fitted model simulated over the validation part with the recorded command, from the
    state the fit estimated at its start, scored with MATLAB's fit % (:mod:`.validation`);
 7. **result** — estimates, standard errors, correlations, warnings, and the noise check: the residual rms
    of each measured signal over its sensor noise; above :data:`.rules.ABOVE_NOISE_WARNING` the result says
-   ``converged_to_noise = False``, ``solver["success"] = False`` and warns (:class:`.result.FitResult`).
+   ``converged_to_noise = False``, ``solver["success"] = False`` and warns (:class:`.result.FitResult`): the
+   verdict is what the fit reached, whichever optimiser finished it and however it stopped
+   (``solver["stopped_by"]``).
 
 ``warm_start=`` (a fit of the same recording) skips 2. and 4.: the trust region and IPOPT start from that
 fit's parameters and states (diagnosis's refits with one more effect).  The stages are the fields of
@@ -37,8 +44,7 @@ fit's parameters and states (diagnosis's refits with one more effect).  The stag
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
@@ -49,13 +55,14 @@ from ..recording import Recording
 from ..rig import Rig
 from .constrained import settle_gauss_newton, solve_ipopt_exact
 from .initial import better_first_state, initial_starts
-from .stage_lines import StageLines, rounds_text, routes_text
+from .stage_lines import rounds_text, routes_text
 from .rescue_routes import prediction_error_route, short_segments_route, tracked_route
 from .result import FitResult, ParameterEstimate
+from .run import FitRun, better, normalised_rms, stopped_by
 from .rules import (ABOVE_NOISE_WARNING, IPOPT_MAX_ITER, MODEL_SHORT, PENALTY_WEIGHT, PREFIT_SAMPLES, PREFIT_STARTS,
-                    SAME_PREFIT, SEGMENT_SAMPLES, SHORT_SEGMENTS, START_FACTORS, WARM_CONTINUE_BELOW, WARM_TOLERANCE)
+                    SAME_PREFIT, SEGMENT_SAMPLES, SHORT_SEGMENTS, START_FACTORS, WARM_CONTINUE_BELOW,
+                    WARM_TOLERANCE)
 from .setup import FitSetup, _name
-from .shooting import ShootingProblem
 from .stages import full_fit, prefit, well_above
 from .threads import one_blas_thread
 from .trust_region import trust_region
@@ -136,7 +143,7 @@ class PhysicalFit:
         """Fit ``recording``: checks and split, pre-fit from each start, whole fit, rescue routes, uncertainty,
         validation, result (``warm_start``: a refit from that fit of the same recording, no pre-fit and no
         rescue).  Raises :class:`FitError` like :func:`~pneusim.fit.fit_recording`."""
-        run = _Run(self, recording, warm_start, start_values)                 # checks and split
+        run = FitRun(self, recording, warm_start, start_values)                 # checks and split
         try:
             if warm_start is None:
                 best = self._fit_from_starts(run)                             # pre-fit and whole fit, each start
@@ -150,12 +157,14 @@ class PhysicalFit:
             run.close()
 
     # ------------------------------------------------------------------ pre-fit and whole fit from each start
-    def _fit_from_starts(self, run: "_Run"):
+    def _fit_from_starts(self, run: "FitRun"):
         """Each start's pre-fit, then the whole part from it, until a fit needs no restart; the best fit.
 
         A short window can leave two basins equally good (the valve's critical pressure ratio against its
         conductance, say) that the whole part tells apart: a fit that ends well above its pre-fit's residual
-        is retried from the next start (``docs/decisions/0013``)."""
+        is retried from the next start (``docs/decisions/0013``).  Where the first start's fit ends above noise,
+        the prediction-error route runs before the next start, which is tried only where that route does not
+        bring the fit to noise (``docs/decisions/0103``)."""
         setup = run.setup
         run.open_window(self.prefit_samples)
         for k, factors in enumerate(START_FACTORS[:max(1, self.starts)]):
@@ -165,11 +174,16 @@ class PhysicalFit:
             if pre is None:
                 continue
             rms_pre, rms = pre[1], self._whole_fit(run, k, *pre)
+            if k == 0 and rms > ABOVE_NOISE_WARNING:
+                # the prediction-error route before the other starts: where the first start fails on a recording
+                # too chaotic for the shooting problem's landscape, the others fail there too (0103)
+                if normalised_rms(run.pb, self._prediction_error(run, _best(run))) <= ABOVE_NOISE_WARNING:
+                    break
             if not self._restart(run, k, rms, rms_pre):
                 break
-        return min(run.fits, key=lambda f: (f[0], f[1]))[2]
+        return _best(run)
 
-    def _prefit(self, run: "_Run", k: int, theta0):
+    def _prefit(self, run: "FitRun", k: int, theta0):
         """Start ``k``'s pre-fit from ``theta0`` on the window, and its short-segment route where that applies:
         ``(v, rms)``, or None where it ended where an earlier start's did (the same basin: not fitted again)."""
         pb, lo, hi = run.window
@@ -199,7 +213,7 @@ class PhysicalFit:
                     f"{'kept' if route['kept'] else 'not kept'} ({route['seconds']:.1f} s)")
         return v_pre, rms_pre
 
-    def _whole_fit(self, run: "_Run", k: int, v_pre, rms_pre: float) -> float:
+    def _whole_fit(self, run: "FitRun", k: int, v_pre, rms_pre: float) -> float:
         """The whole estimation part from start ``k``'s pre-fit ``v_pre``: the trust region, then the exact
         problem (Gauss-Newton settling, else IPOPT); the fit joins ``run.fits``.  Returns its normalised rms."""
         pb, lo, hi = run.pb, run.lo, run.hi
@@ -212,25 +226,20 @@ class PhysicalFit:
         # IPOPT on the kept route's point, unless the direct route's was already finished and kept; where
         # the continuation was kept over a finished direct route, the better of the two finished fits
         finished = info.pop("finished", None)
-        done = self.stages.settle(pb, v_ls, rms_ls, self.rtol, lo, hi) if finished is None else None
-        if done is not None:
-            res, rms = done, normalised_rms(pb, done)
+        if finished is not None and info["route"] == "direct":
+            res, rms = finished
         else:
-            res, rms = finished if finished is not None and info["route"] == "direct" else run.finish(v_ls)
+            res, rms = run.finish(v_ls, rms_ls)
         if finished is not None and info["route"] != "direct" and finished[0].objective < res.objective:
             res, rms = finished
         run.attempts[-1].update(fit_rms_normalised=rms, fit_routes=info["routes"], ipopt_status=res.status,
                                 ipopt_iterations=res.iterations)
         run.fits.append((res.objective if np.isfinite(res.objective) else np.inf, k, res))
-        how = (f"settled by {res.iterations} Gauss-Newton steps on the constrained problem (largest defect "
-               f"{res.max_defect:.2g}, the next step within a tenth of every standard error; IPOPT not needed)"
-               if done is not None else
-               f"IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s)")
-        run.say(f"start {k + 1}, fit: {how}, normalised rms residual {rms:.3g}")
+        run.say(f"start {k + 1}, fit: {stopped_by(res)}, normalised rms residual {rms:.3g}")
         return rms
 
     @staticmethod
-    def _whole_starts(run: "_Run", theta0, prefit_states) -> np.ndarray:
+    def _whole_starts(run: "FitRun", theta0, prefit_states) -> np.ndarray:
         """The whole part's segment start states at the pre-fit's parameters ``theta0``: chained from the
         recording's start, the pre-fit's own states where its window is the part's start, and the better of
         two first states (``docs/decisions/0014``).
@@ -247,7 +256,7 @@ class PhysicalFit:
         return x_init
 
     @staticmethod
-    def _restart(run: "_Run", k: int, rms: float, rms_pre: float) -> bool:
+    def _restart(run: "FitRun", k: int, rms: float, rms_pre: float) -> bool:
         """Whether start ``k``'s fit (``rms``, its pre-fit ``rms_pre``) calls for the next start: it ended well
         above its pre-fit (the window had a second basin), or both ended above noise (the window's basin need
         not be the whole part's); not where the pre-fit itself ends more than :data:`.rules.MODEL_SHORT` times
@@ -261,7 +270,7 @@ class PhysicalFit:
         return True
 
     # ------------------------------------------------------------------------------------- the warm refit
-    def _refit_warm(self, run: "_Run", warm_start: FitResult):
+    def _refit_warm(self, run: "FitRun", warm_start: FitResult):
         """A refit from ``warm_start``'s parameters and states: no pre-fit, no other starts; the trust region
         with a looser tolerance (near the optimum it only has to bring the new effect in), then IPOPT, one
         more IPOPT round where the iteration cap stopped it while the new effect was still coming in
@@ -290,10 +299,10 @@ class PhysicalFit:
         run.attempts.append({"start": "warm", "fit_rms_normalised": rms, "ipopt_status": res.status,
                              "ipopt_iterations": res.iterations, **info})
         run.fits.append((res.objective if np.isfinite(res.objective) else np.inf, 0, res))
-        return min(run.fits, key=lambda f: (f[0], f[1]))[2]
+        return _best(run)
 
     # ------------------------------------------------------------------------------------ the rescue routes
-    def _rescue(self, run: "_Run", res):
+    def _rescue(self, run: "FitRun", res):
         """The rescue routes after the best fit ``res``: tracked starts where it ended above noise but neither
         it nor every pre-fit more than :data:`.rules.MODEL_SHORT` times above it (a recording too chaotic for
         chained starts), then the prediction-error route where it still ends above noise, however far (a
@@ -303,34 +312,42 @@ class PhysicalFit:
         rms_best = normalised_rms(pb, res)
         if (ABOVE_NOISE_WARNING < rms_best <= MODEL_SHORT
                 and min(a["rms_normalised"] for a in run.attempts) <= MODEL_SHORT):
-            res, run.tracked = _better(res, *self.stages.tracked(pb, res.v, lo, hi, rms_best, run.finish))
+            res, run.tracked = better(res, *self.stages.tracked(pb, res.v, lo, hi, rms_best, run.finish))
             run.say("tracked starts: " + rounds_text(run.tracked) + f" against {rms_best:.3g}: "
                     f"{'kept' if run.tracked['kept'] else 'not kept'} ({run.tracked['seconds']:.1f} s)")
-        if normalised_rms(pb, res) > ABOVE_NOISE_WARNING:
+        if normalised_rms(pb, res) > ABOVE_NOISE_WARNING and run.predicted is None:
             res = self._prediction_error(run, res)
         run.window[0].close()
         return res
 
-    def _prediction_error(self, run: "_Run", res):
-        """The prediction-error route from the start against the best fit ``res``, on a window at the
-        recording's start (the filter tracks the whole part from there)."""
+    def _prediction_error(self, run: "FitRun", res):
+        """The prediction-error route from the start against the best fit ``res``, on a window at the recording's
+        start (the filter tracks the whole part from there); its fit joins ``run.fits`` where kept, its report
+        ``run.predicted``.  Returns the better of the two."""
         setup = run.setup
         if run.window_start > 0:
-            run.window[0].close()
-            run.window = run.problem(min(setup.n_est, self.prefit_samples))
-            window = run.window[0]
-            run.first_at_start = initial_starts(window, setup.theta_start, run.recording, window.data.n_samples)[0]
-        res, run.predicted = _better(res, *self.stages.prediction_error(
-            run.window[0], run.pb, run.lo, run.hi, setup.theta_start, run.first_at_start, normalised_rms(run.pb, res),
-            run.finish))
-        pem = run.predicted["prediction_error"]
-        run.say(f"prediction-error route: filter innovations {pem['rms_innovations']:.3g} ({pem['seconds']:.1f} s)"
-                + (", tracked starts " + rounds_text(run.predicted) if "rounds" in run.predicted else "")
-                + f": {'kept' if run.predicted['kept'] else 'not kept'} ({run.predicted['seconds']:.1f} s)")
+            window = run.problem(min(setup.n_est, self.prefit_samples))[0]
+            first = initial_starts(window, setup.theta_start, run.recording, window.data.n_samples)[0]
+        else:
+            window, first = run.window[0], run.first_at_start
+        try:
+            res, route = better(res, *self.stages.prediction_error(
+                window, run.pb, run.lo, run.hi, setup.theta_start, first, normalised_rms(run.pb, res), run.finish))
+        finally:
+            if window is not run.window[0]:
+                window.close()
+        run.predicted = route
+        if route["kept"]:
+            run.fits.append((res.objective, len(START_FACTORS), res))
+        innovations = ", ".join(f"{a['rms_innovations']:.3g} (start {a['start'] + 1}, {a['seconds']:.1f} s)"
+                                for a in route["attempts"])
+        run.say(f"prediction-error route: filter innovations {innovations}"
+                + (", tracked starts " + rounds_text(route) if "rounds" in route else "")
+                + f": {'kept' if route['kept'] else 'not kept'} ({route['seconds']:.1f} s)")
         return res
 
     # ---------------------------------------------------------------- uncertainty, validation and result
-    def _uncertainty(self, run: "_Run", res):
+    def _uncertainty(self, run: "FitRun", res):
         """``(estimate, uncertainty)`` at the fit ``res``: the parameter vector (SI) and the covariance's dict
         (:func:`.uncertainty.covariance`); the continuity defects left open go to ``run.defect_sum_squares``."""
         pb = run.pb
@@ -348,7 +365,7 @@ class PhysicalFit:
         run.say("uncertainty: Gauss-Newton covariance done")
         return estimate, uncertainty
 
-    def _validation(self, run: "_Run", estimate, uncertainty: dict) -> dict:
+    def _validation(self, run: "FitRun", estimate, uncertainty: dict) -> dict:
         """The fitted model over the validation part, from the state the fit estimated at its start."""
         setup = run.setup
         x_boundary = uncertainty["states"][setup.n_est - 1].copy()
@@ -356,7 +373,7 @@ class PhysicalFit:
                                     setup.rig.stroke_m, self.rtol)
 
     @staticmethod
-    def _build_result(run: "_Run", res, estimate, uncertainty: dict, validation: dict) -> FitResult:
+    def _build_result(run: "FitRun", res, estimate, uncertainty: dict, validation: dict) -> FitResult:
         """The :class:`FitResult`: estimates, standard errors, correlations, validation, the solver's path."""
         setup = run.setup
         result = FitResult.build(
@@ -371,80 +388,9 @@ class PhysicalFit:
         return result
 
 
-class _Run:
-    """One fit's state: the setup, the whole estimation part's problem, the pre-fit's window and its problem,
-    the attempts and fits so far, the rescue routes' reports, and the stage lines."""
-
-    def __init__(self, options: PhysicalFit, recording: Recording, warm_start, start_values):
-        self.started = time.perf_counter()
-        self.say = StageLines(options.quiet and not options.verbose, self.started)
-        self.options, self.recording, self.warm = options, recording, warm_start is not None
-        validation_fraction = options.validation_fraction
-        if validation_fraction is None and warm_start is not None:
-            # the warm fit's split: round(n * (n_est / n)) gives back n_est exactly
-            validation_fraction = 1.0 - warm_start.n_estimation / recording.n_samples
-        self.setup = FitSetup(recording, options.rig, options.effects, options.free, validation_fraction,
-                              warm_start, start_values, options.segment_samples)
-        self.pb, self.lo, self.hi = self.problem(self.setup.n_est)
-        self.window = None
-        self.window_start = self.window_stop = 0
-        self.window_recording = recording
-        self.first_at_start = None
-        self.attempts, self.fits = [], []
-        self.tracked = self.predicted = None
-        self.defect_sum_squares = float("nan")
-
-    def problem(self, stop: int, segment: int | None = None, start: int = 0):
-        """``(problem, lower, upper)`` of samples ``start`` to ``stop - 1`` (:meth:`.setup.FitSetup.problem`)."""
-        return self.setup.problem(stop, self.options.rtol, self.options.threads, segment, start)
-
-    def open_window(self, samples: int) -> None:
-        """The pre-fit's window of ``samples`` samples: the estimation part's first, unless the piston hardly
-        moves there (:meth:`.setup.FitSetup.prefit_start`); its recording and its problem."""
-        start = self.setup.prefit_start(samples)
-        stop = start + min(self.setup.n_est, samples)
-        rec = self.recording
-        self.window_start, self.window_stop = start, stop
-        self.window_recording = rec if start == 0 else rec.slice(rec.time_s[start], rec.time_s[stop])
-        self.window = self.problem(stop, start=start)
-
-    def finish(self, v):
-        """IPOPT on the whole estimation part from ``v``: ``(result, normalised rms)``."""
-        options = self.options
-        done = options.stages.finish(self.pb, v, self.lo, self.hi, options.max_iter, options.rtol,
-                                     penalty=PENALTY_WEIGHT)
-        return done, normalised_rms(self.pb, done)
-
-    def solver_info(self, res) -> dict:
-        """The result's ``solver`` dict: the final solver's status and counts, the path taken, the seconds."""
-        return {"status": res.status, "ipopt_success": res.success, "iterations": res.iterations,
-                "seconds": time.perf_counter() - self.started, "ipopt_seconds": res.seconds,
-                "max_defect": res.max_defect, "defect_sum_squares": self.defect_sum_squares,
-                "prefit_attempts": self.attempts, "tracked_route": self.tracked,
-                "prediction_error_route": self.predicted, "formulation": res.formulation, "warm_start": self.warm,
-                "segments": int(self.pb.n_segments), "segment_samples": self.setup.seg}
-
-    def close(self) -> None:
-        """Release the problems' integrator threads (again: closing twice is harmless)."""
-        self.pb.close()
-        if self.window is not None:
-            self.window[0].close()
-
-
-def normalised_rms(pb: ShootingProblem, res) -> float:
-    """The normalised rms residual of an IPOPT result (noise level 1)."""
-    return float(np.sqrt(res.objective / max(pb.n_residuals, 1)))
-
-
-def _better(res, done, info: dict):
-    """``(fit, info)``: a route's finished fit ``done`` where it is finite and lower than ``res`` (its
-    iterations and seconds counted on top of ``res``'s), else ``res``; ``info["kept"]`` says which."""
-    info["kept"] = bool(done is not None and np.isfinite(done.objective) and done.objective < res.objective)
-    if not info["kept"]:
-        return res, info
-    done.iterations += res.iterations
-    done.seconds += res.seconds
-    return done, info
+def _best(run: FitRun):
+    """The lowest fit of ``run.fits`` (the earlier start on a tie)."""
+    return min(run.fits, key=lambda f: (f[0], f[1]))[2]
 
 
 def _estimates(setup: FitSetup, estimate: np.ndarray, uncertainty: dict) -> dict:

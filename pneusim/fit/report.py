@@ -91,7 +91,7 @@ def _blocks(result: FitResult) -> list:
                        f"Residual over sensor noise (1 = noise level): {ratios}; "
                        + ("the fit reaches the noise level." if result.converged_to_noise
                           else "**the fit ends above the noise level** (see the warnings)."),
-                       f"IPOPT: {result.solver['status']} after {result.solver['iterations']} iterations; "
+                       f"Finished by: {result.solver.get('stopped_by', result.solver['status'])}; "
                        f"{result.solver['seconds']:.1f} s in all."])]
     if result.warnings:
         blocks += [("h", (2, "Warnings")), ("ul", list(result.warnings))]

@@ -66,7 +66,12 @@ class FitResult:
         Parameters the recording does not pin down (huge variance, correlation
         above 0.99, at a bound).
     solver : dict
-        IPOPT status, iterations, time; ``success`` is IPOPT's success *and* ``converged_to_noise``.
+        How the fit went: ``success`` is the verdict, ``converged_to_noise`` (what the fit reached, whichever
+        optimiser finished it and however it stopped); ``stopped_by`` says in words how the last optimiser
+        stopped (Gauss-Newton settling, or IPOPT's status, iterations and formulation), ``status``,
+        ``ipopt_success``, ``iterations`` and ``formulation`` the same as fields; ``seconds`` and
+        ``cpu_seconds`` the fit's wall-clock and processor time; the stages' path (``prefit_attempts``,
+        ``tracked_route``, ``prediction_error_route``).
     noise_std : dict
         Sensor noise std the residuals were divided by, per measured signal (SI units).
     normalised_residuals : dict
@@ -113,7 +118,8 @@ class FitResult:
                      n_estimation=n_estimation, sigma=sigma, validation=validation,
                      solver=solver, recording=recording, estimation_states=estimation_states,
                      noise_std=dict(noise_std or {}))
-        result.solver["success"] = bool(result.solver.get("ipopt_success", True)) and result.converged_to_noise
+        # the verdict is what the fit reached, not how its last optimiser stopped (that is solver["stopped_by"])
+        result.solver["success"] = result.converged_to_noise
         result.warnings = result._noise_warnings() + result._continuity_warnings() + result._identifiability_warnings()
         return result
 
@@ -239,7 +245,7 @@ class FitResult:
             lines.append(f"{name:<44} {p.start:>11.4g} {p.estimate:>11.4g} {std:>10}")
         v = self.validation
         lines.append(f"validation {v['t_start_s']:.3f}-{v['t_end_s']:.3f} s: fit {v['fit_percent']:.2f} % (position)")
-        lines.append(f"IPOPT: {self.solver['status']} after {self.solver['iterations']} iterations; "
+        lines.append(f"finished by: {self.solver.get('stopped_by', self.solver['status'])}; "
                      f"{self.solver['seconds']:.1f} s in all")
         lines.append(f"normalised residual (rms / sensor noise): {self.normalised_residual:.3f}"
                      + ("" if self.converged_to_noise else f" -- above noise (> {ABOVE_NOISE_WARNING})"))

@@ -29,7 +29,7 @@ def rounds_text(info: dict) -> str:
     """A tracked route's rounds and its finished residual, for the stage line."""
     finished = info.get("finished_rms_normalised")
     return (", ".join(f"{r['rms_normalised']:.3g}" for r in info["rounds"])
-            + (f", IPOPT {finished:.3g}" if finished is not None else ""))
+            + (f", finished {finished:.3g}" if finished is not None else ""))
 
 
 def routes_text(info: dict) -> str:

@@ -11,20 +11,17 @@ one integration.  The filter only helps near the truth: at the data sheet's para
 off) its starts fit no better than the chained ones, so the fitter uses it after a fit, from that fit's
 parameters (:func:`.rescue_routes.tracked_route`; ``docs/decisions/0017``).
 
-The filter is :class:`filterpy.kalman.ExtendedKalmanFilter`'s update; its prediction is one sample of
-the fit's own integrator (:class:`~pneusim.solver.sensitivity.SensitivitySimulator`, the held command and
-any transport delay as in the fit), linearised by that integrator's state sensitivities.  The same filter
+The filter's update is the extended Kalman filter's in Joseph form (filterpy's equations, written for
+measurements that read states directly); its prediction is one sample of the fit's own integrator
+(:class:`~pneusim.solver.sensitivity.SensitivitySimulator`, the held command and any transport delay as in the
+fit), linearised by that integrator's state sensitivities.  The same filter
 (:func:`run_filter`) gives the prediction-error fit (:mod:`.prediction_error`) its whitened innovations and
 their fixed-gain Jacobian.
 """
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
-from filterpy.kalman import ExtendedKalmanFilter
-from scipy.linalg import LinAlgWarning
 
 from ..errors import PneusimError
 from ..solver.backends import state_scales
@@ -88,59 +85,81 @@ def run_filter(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray, proc
     values = np.column_stack([values for (_, _, values, _, _) in pb.outputs])
     sigma = np.array([sigma for (_, _, _, sigma, _) in pb.outputs])
     seen_at = np.column_stack([mask for (_, _, _, _, mask) in pb.outputs])
-    kf = ExtendedKalmanFilter(dim_x=n, dim_z=rows.size)
-    kf.x = np.asarray(x_first, float).copy()
-    kf.P = np.diag(first_state_std(pb) ** 2)
-    kf.Q = np.diag(np.asarray(process, float) ** 2)
+    state = {"x": np.asarray(x_first, float).copy(), "P": np.diag(first_state_std(pb) ** 2), "Z": None}
+    Q = np.diag(np.asarray(process, float) ** 2)
     x_lo, x_hi = pb.state_bounds()
     out = np.empty((data.n_samples, n))
     ok = True
     if gradients:
         innovations = np.zeros((data.n_samples, rows.size))
         jacobian = np.zeros((data.n_samples, rows.size, nf + n))
-        Z = np.zeros((n, nf + n))   # d x / d (theta, x_first scaled)
-        Z[:, nf:] = np.diag(pb.x_scale)
+        state["Z"] = np.zeros((n, nf + n))   # d x / d (theta, x_first scaled)
+        state["Z"][:, nf:] = np.diag(pb.x_scale)
     for k in range(data.n_samples):
         if k > 0:
             schedule = command_schedule(data.time_s, data.command_V, k - 1, k, pb.delay_s, data.command_before_V)
             try:
-                xs, S = sim.run(data.time_s[k - 1], kf.x, schedule, 2, True)
+                xs, S = sim.run(data.time_s[k - 1], state["x"], schedule, 2, True)
             except PneusimError:
                 xs = None
             if xs is not None and np.all(np.isfinite(xs[1])):
                 F = S[1][:, nf:nf + n] / pb.x_scale[None, :]     # d x_k / d x_{k-1}: the columns are scaled
-                kf.x = xs[1]
-                kf.P = F @ kf.P @ F.T + kf.Q
+                state["x"] = xs[1]
+                state["P"] = F @ state["P"] @ F.T + Q
                 if gradients:
-                    Z = F @ Z
-                    Z[:, :nf] += S[1][:, :nf]
+                    state["Z"] = F @ state["Z"]
+                    state["Z"][:, :nf] += S[1][:, :nf]
             else:
                 ok = False
         seen = seen_at[k]
         if seen.any():
-            # the model's readings and their slopes at the predicted state (filterpy asks for both there)
-            at = rows[seen]
-            reading, H = kf.x[at].copy(), np.zeros((at.size, n))
-            H[np.arange(at.size), at] = 1.0
-            position = np.flatnonzero(at == pb.position_index)
-            if position.size:
-                p = position[0]
-                reading[p], H[p, pb.position_index] = expected_position_reading(
-                    kf.x[pb.position_index], pb.stroke_m, sigma[seen][p])
-            with warnings.catch_warnings():
-                # the innovation covariance mixes m^2 and Pa^2 (1e-9 against 1e6): SciPy's condition estimate
-                # sees those units, not a nearly singular matrix
-                warnings.simplefilter("ignore", LinAlgWarning)
-                kf.update(values[k, seen], lambda x: H, lambda x: reading, R=np.diag(sigma[seen] ** 2))
+            whitened, slopes = _update(pb, state, rows[seen], values[k, seen], sigma[seen])
             if gradients:
-                L = np.linalg.cholesky(kf.S)
-                innovations[k, seen] = np.linalg.solve(L, kf.y)
-                jacobian[k, seen] = -np.linalg.solve(L, H @ Z)
-                Z = Z - kf.K @ (H @ Z)
-        kf.x = np.clip(kf.x, x_lo, x_hi)
-        out[k] = kf.x
+                innovations[k, seen], jacobian[k, seen] = whitened, slopes
+        state["x"] = np.clip(state["x"], x_lo, x_hi)
+        out[k] = state["x"]
     result = {"states": out, "ok": ok}
     if gradients:
         result["innovations"] = innovations.ravel()
         result["jacobian"] = jacobian.reshape(-1, nf + n)
     return result
+
+
+def _update(pb: ShootingProblem, state: dict, at: np.ndarray, measured: np.ndarray, sigma: np.ndarray):
+    """The filter's measurement update of ``state`` (``x``, ``P`` and, unless None, the sensitivities ``Z``) by
+    the values ``measured`` of states ``at`` (noise std ``sigma``): ``(whitened innovations, their derivative)``
+    (the derivative None without ``Z``).
+
+    The extended Kalman filter's update in Joseph form, ``P = (I - K H) P (I - K H)^T + K R K^T`` (filterpy's),
+    written for measurements that read states directly: each measured value is one state (the position through
+    the saturating sensor's mean reading, :func:`.shooting.expected_position_reading`), so ``H`` is a scaled
+    selection of rows and ``P H^T`` a scaled selection of columns, and one value makes the innovation's
+    covariance a number.  Why not filterpy's object: its bookkeeping of general matrices took a third of a
+    prediction-error fit's time (``docs/decisions/0101``).
+    """
+    x, P, Z = state["x"], state["P"], state["Z"]
+    # the model's readings and their slopes at the predicted state: H = diag(slope) E_at
+    reading, slope = x[at].copy(), np.ones(at.size)
+    p = np.flatnonzero(at == pb.position_index)
+    if p.size:
+        reading[p[0]], slope[p[0]] = expected_position_reading(x[pb.position_index], pb.stroke_m, sigma[p[0]])
+    PHT = P[:, at] * slope                                       # P H^T
+    S = PHT[at] * slope[:, None] + np.diag(sigma ** 2)           # H P H^T + R
+    y = measured - reading
+    if at.size == 1:
+        L = np.sqrt(S)
+        K = PHT / S[0, 0]
+    else:
+        L = np.linalg.cholesky(S)
+        K = np.linalg.solve(S, PHT.T).T                          # P H^T S^-1
+    I_KH = np.eye(x.size)
+    I_KH[:, at] -= K * slope                                     # I - K H
+    state["x"] = x + K @ y
+    state["P"] = I_KH @ P @ I_KH.T + (K * sigma ** 2) @ K.T
+    if Z is None:
+        return None, None
+    HZ = Z[at] * slope[:, None]
+    state["Z"] = Z - K @ HZ
+    if at.size == 1:
+        return y / L[0, 0], -HZ / L[0, 0]
+    return np.linalg.solve(L, y), -np.linalg.solve(L, HZ)

@@ -27,7 +27,7 @@ _STATUS = {-1: "improper input", 0: "evaluation limit", 1: "gradient tolerance",
 
 def trust_region(pb: ShootingProblem, v0, lower, upper, max_evaluations: int = TRUST_REGION_EVALUATIONS,
                  defect_weight: float = PREFIT_DEFECT_WEIGHTS[-1], tolerance: float = TRUST_REGION_TOLERANCE,
-                 restarts: int = 0):
+                 restarts: int = 0, least_squares=None):
     """Trust-region least squares (SciPy's ``trf`` with the exact sparse Jacobian) on the shooting
     problem with the continuity defects as residuals weighted ``defect_weight``.
 
@@ -46,11 +46,15 @@ def trust_region(pb: ShootingProblem, v0, lower, upper, max_evaluations: int = T
     step tolerance alone above noise (``docs/decisions/0005``); ``max_evaluations`` caps them all together,
     and ``info`` counts them (``"restarts"``).
 
+    ``least_squares``: SciPy's :func:`scipy.optimize.least_squares` unless given (a stand-in in tests).
+
     Returns ``(v, rms, info)``: the end point, its normalised rms residual (continuity aside) and ``info``
     with SciPy's stop reason, evaluations, Jacobians, restarts and seconds.
     """
     from scipy import sparse
-    from scipy.optimize import least_squares
+
+    if least_squares is None:
+        from scipy.optimize import least_squares
 
     started = time.perf_counter()
     n_r = pb.n_residuals

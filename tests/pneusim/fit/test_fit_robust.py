@@ -10,22 +10,21 @@
   :mod:`pneusim.fit.robustness` for why): the fit reaches the noise level and the truth lies within
   3 sigma for at least six of the seven default parameters.  7 of the 8 pass (85 s with two
   workers); ``s5000`` still ends above noise and is marked as a strict expected failure.
-* Three cases of the robustness set run by default: a restart when the first start ends above noise
-  (``s1041``), a recording that starts mid stick-slip with end stops (``s5006``), and one with both
-  pressures that stick-slips from sample to sample (``s1026``, the short-segment route).
-* A chaotic open-loop recording without pressures (``s1027``) reaches the noise through segment starts
-  tracked by a Kalman filter after its fit ended above it; at the true parameters the filter's starts
-  bring a chaotic window (``s1007``) from 8.3 times noise (chained starts) to the noise.
-* The prediction-error route: at the true parameters the Kalman filter's whitened innovations have unit
-  rms; least squares on them from the data sheet's values recover every parameter of a chaotic recording
-  (``s1030``) whose pre-fits all end more than five times above noise, and the fit then reaches the noise
-  through that route.
-* The chaotic open-loop ``s1007`` fitted from its true values reaches the noise (a strict expected failure
-  at 1.65 times noise until the prediction-error route).
+* Cases of the robustness set whose fits are chaotic in their start (the landing basin of a trust region or
+  a filter hangs on the last bits of the arithmetic): the *verdict* is asserted (the fit reaches the noise,
+  the truth within 3 sigma), never the route that got there, and for the cheaper ones also with the start
+  values or the data moved by 1e-12 relative (``verdicts.py``); ``.ci/run`` runs them again under a second
+  arithmetic path.  A closed-loop multisine whose first start ends above noise (``s1041``), a recording that
+  starts mid stick-slip with end stops (``s5006``), open-loop stick-slip with both pressures (``s1026``) and
+  without (``s1027``), pulses whose pre-fit may stall above noise (``s1033``), and a chaotic multisine the
+  prediction-error route brings to the noise (``s1030``).
+* At the true parameters the filter's starts bring a chaotic window (``s1007``) from 8.3 times noise (chained
+  starts) to the noise, the filter's whitened innovations are white, and least squares on them from the data
+  sheet's values recover every parameter of a chaotic recording (``s1030``).
+* The chaotic open-loop ``s1007`` fitted from its true values reaches the noise.
 * A recording whose piston rests at its end stop through the first pre-fit window (``s1018``): the window
-  moves to where the piston moves, and the fit reaches the noise from its first trust region.
-* A pre-fit whose trust region stalls above noise (``s1033``) starts a fresh region from there and reaches
-  the noise with the parameters recovered.
+  moves to where the piston moves, and the fit reaches the noise.
+* The trust region starts a fresh region after a stop on its step tolerance alone above noise.
 * The robustness score counts a parameter whose standard error is not finite as outside 3 sigma.
 """
 
@@ -47,6 +46,7 @@ from pneusim.model import make_effect
 from pneusim.recording import write_recording
 from pneusim.rig import load_rig
 from pneusim.simulate import simulate
+from verdicts import assert_verdict, fits_under_perturbations
 
 DEADBAND_V = 0.3
 
@@ -170,20 +170,17 @@ def test_hardest_kinds_reach_noise_with_truth_inside_three_sigma(spec):
 
 
 @pytest.mark.minutes
-def test_fit_restarts_when_the_first_start_ends_above_noise():
-    """Paper 1, closed-loop multisine without pressures (``s1041`` of the robustness set): the first
-    start's pre-fit ends at 2.14 and its fit at 2.37 times noise, with the Stribeck velocity at 3.4
-    times the truth.  The fit did not restart (it had not ended *well above* its pre-fit); now a fit
-    and pre-fit both above noise try the next start, whose fit reaches the noise."""
+def test_closed_loop_multisine_whose_first_start_ends_above_noise_reaches_noise():
+    """Paper 1, closed-loop multisine without pressures (``s1041`` of the robustness set): the first start's fit
+    ends above noise (its pre-fit at about twice the noise, the Stribeck velocity far off), and the fit goes on
+    (the prediction-error route, the next start) until it reaches the noise with the truth within 3 sigma: as
+    given and with the start values or the data moved by 1e-12 relative."""
     spec = next(s for s in robustness_cases(48) if s.seed == 1041)
     assert (spec.rig_name, spec.kind, spec.loop, spec.pressures) == ("paper1-mre", "multisine", "closed", False)
     rig, truth, rec = make_case(spec)
-    result = fit_recording(rec, rig, free=fit_free(True), quiet=True)
-    attempts = result.solver["prefit_attempts"]
-    assert len(attempts) >= 2 and attempts[0]["fit_rms_normalised"] > 1.1, attempts
-    s = score(result, truth)
-    assert result.converged_to_noise, (result.normalised_residuals, attempts)
-    assert s["inside_3_sigma"] >= s["parameters"] - 1, s["z"]
+    for label, result in fits_under_perturbations(rec, rig, free=fit_free(True)):
+        assert result.solver["prefit_attempts"][0]["rms_normalised"] > ABOVE_NOISE_WARNING
+        assert_verdict(result, truth, label)
 
 
 @pytest.mark.minutes
@@ -205,11 +202,10 @@ def test_recording_starting_mid_stick_slip_with_stops_reaches_noise():
 
 def test_prefit_window_moves_to_where_a_piston_resting_at_its_stop_starts_to_move():
     """Paper 1, open-loop multisine with pressures (``s1018`` of the robustness set): the piston rests at
-    its end stop for the first 3.3 s, the whole first 2000-sample window.  The pre-fit there ended at noise
-    with the conductance at 0.52 and the Coulomb friction at 2.1 times the truth, the whole part's fit from
-    it at 4.2 times noise, and only the continuation route reached the noise (27.6 s).  The window now
-    moves to where the piston moves; the fit reaches the noise from the first trust region, every truth
-    within 3 sigma.  A recording that moves from its start keeps the first window."""
+    its end stop for the first 3.3 s, the whole first 2000-sample window.  A pre-fit there says nothing about
+    friction and mass (it ended at noise with the conductance at 0.52 and the Coulomb friction at 2.1 times the
+    truth).  The window moves to where the piston moves, and the fit reaches the noise with every truth within
+    3 sigma.  A recording that moves from its start keeps the first window."""
     spec = next(s for s in robustness_cases(48) if s.seed == 1018)
     assert (spec.rig_name, spec.kind, spec.loop, spec.pressures) == ("paper1-mre", "multisine", "open", True)
     rig, truth, rec = make_case(spec)
@@ -223,45 +219,56 @@ def test_prefit_window_moves_to_where_a_piston_resting_at_its_stop_starts_to_mov
     assert FitSetup(moving_rec, moving_rig, (), fit_free(True), None, None, None, 50).prefit_start(2000) == 0
 
     result = fit_recording(rec, rig, free=fit_free(True), quiet=True)
-    attempts = result.solver["prefit_attempts"]
-    assert attempts[0]["window_start_sample"] == start
-    assert len(attempts) == 1 and [r["route"] for r in attempts[0]["fit_routes"]] == ["direct"], attempts
-    s = score(result, truth)
-    assert result.converged_to_noise, result.normalised_residuals
-    assert s["inside_3_sigma"] == s["parameters"], s["z"]
+    assert result.solver["prefit_attempts"][0]["window_start_sample"] == start
+    assert_verdict(result, truth, all_inside=True)
 
 
-def test_prefit_starts_afresh_where_its_trust_region_stalls_above_noise():
-    """Paper 2, closed-loop pulses without pressures (``s1033`` of the robustness set): the pre-fit's trust
-    region stops on SciPy's step tolerance at 2.2 times noise with the conductance 13 % off (a region
-    shrunk in the penalty's valley; that tolerance is relative to the norm of all 167 variables).  The
-    pre-fit starts a fresh region from there once (:data:`pneusim.fit.rules.PREFIT_RESTARTS`) and reaches
-    the noise with all seven parameters within 1 % of the truth (measured: 0.986 times noise, 0.2 %)."""
-    from pneusim.fit.stages import prefit
+def test_trust_region_starts_afresh_after_a_stall_on_its_step_tolerance_above_noise():
+    """SciPy's step tolerance is relative to the norm of all variables, which the segment states dominate: a
+    region shrunk in the penalty's curved valley stops a run while the cost still falls.  Where a run stops on
+    that tolerance alone above noise, the trust region starts afresh from there, ``restarts`` times at most;
+    not after a stop at noise, nor on the cost tolerance (SciPy replaced by a stand-in that lowers the residual
+    by a tenth per run and says how it stopped)."""
+    from types import SimpleNamespace
+
     from pneusim.fit.trust_region import trust_region
 
+    class Problem:                       # one residual value repeated: the normalised rms is |v[0]|
+        n_residuals, n_constraints = 100, 0
+
+        def evaluate(self, v, derivatives=True):
+            return {"ok": True, "r": np.full(100, v[0]), "g": np.zeros(0)}
+
+    def runs(v0, status, restarts=1):
+        starts = []
+
+        def least_squares(fun, x0, **options):
+            starts.append(float(x0[0]))
+            return SimpleNamespace(x=0.9 * x0, nfev=5, njev=5, status=status)
+
+        v, rms, info = trust_region(Problem(), np.array([v0]), np.array([-10.0]), np.array([10.0]),
+                                    restarts=restarts, least_squares=least_squares)
+        assert info["restarts"] == len(starts) - 1 and rms == pytest.approx(abs(v[0]))
+        return starts
+
+    assert runs(2.0, 3) == pytest.approx([2.0, 1.8])            # above noise on the step tolerance: once more
+    assert runs(2.0, 3, restarts=2) == pytest.approx([2.0, 1.8, 1.62])
+    assert runs(1.1, 3) == [1.1]                                  # at noise (0.99): done
+    assert runs(2.0, 4) == [2.0]                                  # the cost no longer falls: done
+    assert runs(2.0, 3, restarts=0) == [2.0]
+
+
+def test_pulses_whose_prefit_may_stall_above_noise_reach_noise():
+    """Paper 2, closed-loop pulses without pressures (``s1033`` of the robustness set): the pre-fit's trust
+    region may stop on SciPy's step tolerance above noise (about twice the noise, with the conductance 13 %
+    off), or reach the noise after a fresh region, as the last bits of its arithmetic fall; either way the fit
+    reaches the noise with every truth within 3 sigma: as given and with the start values or the data moved by
+    1e-12 relative."""
     spec = next(s for s in robustness_cases(48) if s.seed == 1033)
     assert (spec.rig_name, spec.kind, spec.loop, spec.pressures) == ("paper2-enfield", "pulses", "closed", False)
     rig, truth, rec = make_case(spec)
-    setup = FitSetup(rec, rig, (), fit_free(True), None, None, None, 50)
-    assert setup.prefit_start(2000) == 0
-    pb, lo, hi = setup.problem(2000, 1e-6, 2)
-    try:
-        v0 = pb.join(setup.theta_start, initial_starts(pb, setup.theta_start, rec, 2000))
-        defaults = [(name, i) for name, i in zip(setup.free, setup.index) if name in truth][:7]
-
-        def largest_error(v):
-            p = pb.params_of(pb.split(v)[0])
-            return max(abs(p[i] / truth[name] - 1.0) for name, i in defaults)
-
-        v_once, rms_once, once = trust_region(pb, v0, lo, hi)
-        assert once["status"] == "step tolerance" and once["restarts"] == 0
-        assert rms_once > ABOVE_NOISE_WARNING and largest_error(v_once) > 0.05
-        v, rms, info = prefit(pb, v0, lo, hi)
-        assert info["restarts"] >= 1, info
-        assert rms <= ABOVE_NOISE_WARNING and largest_error(v) < 0.01
-    finally:
-        pb.close()
+    for label, result in fits_under_perturbations(rec, rig, free=fit_free(True)):
+        assert_verdict(result, truth, label, all_inside=True)
 
 
 @pytest.mark.minutes
@@ -269,19 +276,13 @@ def test_fit_started_at_the_truth_of_a_chaotic_open_loop_recording_stays_at_nois
     """Paper 2, open-loop multisine without pressures (``s1007`` of the robustness set), started at its eight
     true values.  The piston stick-slips from sample to sample, and at the truth the segments started from
     the chained simulation leave the recorded slip pattern within seconds (their own samples at 3-20 times
-    noise from the ninth segment on).  The pre-fit without pressures takes the direct route only, and that
-    stops at 1.55; the fit at 1.65 with the parameters off, where the Kalman filter's segment starts no
-    longer help (1.65, then 1.81): a strict expected failure until stop 36.  The prediction-error route,
-    from the same start, is kept and brings it to the noise (0.87, all seven truths within 0.25 sigma)."""
+    noise from the ninth segment on), so the shooting fit from there ends above noise with the parameters off;
+    the fit still ends at the noise with the truth within 3 sigma."""
     spec = next(s for s in robustness_cases(48) if s.seed == 1007)
     assert (spec.rig_name, spec.kind, spec.loop, spec.pressures) == ("paper2-enfield", "multisine", "open", False)
     rig, truth, rec = make_case(spec)
     result = fit_recording(rec, rig, free=fit_free(True), quiet=True, start_values=truth)
-    route = result.solver["prediction_error_route"]
-    assert route is not None and route["kept"], (route, result.solver["tracked_route"])
-    s = score(result, truth)
-    assert result.converged_to_noise, (result.normalised_residuals, result.solver["prefit_attempts"])
-    assert s["inside_3_sigma"] >= s["parameters"] - 1, s["z"]
+    assert_verdict(result, truth)
 
 
 def _window(seed: int, at_truth: bool = False):
@@ -354,54 +355,44 @@ def test_prediction_error_fit_recovers_a_chaotic_recording_from_the_data_sheet()
 
 @pytest.mark.minutes
 def test_chaotic_fit_reaches_noise_through_the_prediction_error_route():
-    """``s1030`` fitted from the data sheet: the shooting fit ends far above noise (9.7 times it before this
-    route existed), the prediction-error route is kept and the fit reaches the noise with every truth
-    within 3 sigma."""
+    """``s1030`` fitted from the data sheet: the shooting fit ends far above noise (the pre-fits around five times
+    it, 9.7 times after the whole fit before the prediction-error route existed); the prediction-error route is
+    kept and the fit reaches the noise with every truth within 3 sigma."""
     spec = next(s for s in robustness_cases(48) if s.seed == 1030)
     rig, truth, rec = make_case(spec)
     result = fit_recording(rec, rig, free=fit_free(True), quiet=True)
     route = result.solver["prediction_error_route"]
     assert route is not None and route["kept"], (route, result.solver["prefit_attempts"])
-    assert min(a["rms_normalised"] for a in result.solver["prefit_attempts"]) > 5.0
-    s = score(result, truth)
-    assert result.converged_to_noise, result.normalised_residuals
-    assert s["inside_3_sigma"] == s["parameters"], s["z"]
+    assert_verdict(result, truth, all_inside=True)
 
 
 @pytest.mark.minutes
-def test_chaotic_open_loop_fit_reaches_noise_through_tracked_starts():
-    """Paper 2, open-loop steps without pressures (``s1027`` of the robustness set): every fit from the
-    three starts ends above noise (the best at 1.63, the Stribeck velocity at 0.54 and the viscous friction
-    at 0.64 of the truth, 3 of 7 truths within 3 sigma).  From segment starts tracked by the Kalman filter
-    at that fit's parameters the continuation reaches the noise, kept, with every truth within 3 sigma."""
+def test_chaotic_open_loop_steps_reach_noise():
+    """Paper 2, open-loop steps without pressures (``s1027`` of the robustness set): the piston stick-slips from
+    sample to sample through every slow motion, and the fits from the data sheet's starts end above noise in
+    basins that differ with the last bits of the arithmetic (1.6-2.4 times noise, the Stribeck velocity and the
+    viscous friction at half the truth).  The fit reaches the noise with the truth within 3 sigma anyway, by
+    whichever route (segment starts tracked by the Kalman filter, the prediction-error route): as given and with
+    the start values or the data moved by 1e-12 relative."""
     spec = next(s for s in robustness_cases(48) if s.seed == 1027)
     assert (spec.rig_name, spec.kind, spec.loop, spec.pressures) == ("paper2-enfield", "steps", "open", False)
     rig, truth, rec = make_case(spec)
-    result = fit_recording(rec, rig, free=fit_free(True), quiet=True)
-    tracked = result.solver["tracked_route"]
-    assert tracked is not None and tracked["kept"], (tracked, result.solver["prefit_attempts"])
-    assert min(a["fit_rms_normalised"] for a in result.solver["prefit_attempts"] if "fit_rms_normalised" in a) > 1.1
-    s = score(result, truth)
-    assert result.converged_to_noise, result.normalised_residuals
-    assert s["inside_3_sigma"] == s["parameters"], s["z"]
+    for label, result in fits_under_perturbations(rec, rig, free=fit_free(True)):
+        assert_verdict(result, truth, label, all_inside=True)
 
 
 @pytest.mark.minutes
-def test_open_loop_stick_slip_with_pressures_takes_the_short_segment_route():
+def test_open_loop_stick_slip_with_pressures_reaches_noise():
     """Paper 2, open-loop steps with both pressures (``s1026`` of the robustness set): the piston
-    stick-slips from sample to sample through slow motion.  The 50-sample pre-fit ends above noise with the
-    friction tens of percent off (the fit then at 2.11 times noise, 3 of 7 truths within 3 sigma); its
-    route through 10-sample segments ends clearly lower on the same problem, is kept, and the fit reaches
-    the noise with every truth within 3 sigma."""
+    stick-slips from sample to sample through slow motion, and the 50-sample pre-fit ends above noise with the
+    friction tens of percent off (a fit from there ends at 2.11 times noise, 3 of 7 truths within 3 sigma).
+    Through 10-sample segments (the short-segment route) or the rescue routes, the fit reaches the noise with
+    every truth within 3 sigma."""
     spec = next(s for s in robustness_cases(48) if s.seed == 1026)
     assert (spec.rig_name, spec.kind, spec.loop, spec.pressures) == ("paper2-enfield", "steps", "open", True)
     rig, truth, rec = make_case(spec)
     result = fit_recording(rec, rig, free=fit_free(True), quiet=True)
-    route = result.solver["prefit_attempts"][0]["short_segments"]
-    assert route["kept"] and route["rms_normalised"] < result.solver["prefit_attempts"][0]["rms_normalised"]
-    s = score(result, truth)
-    assert result.converged_to_noise, (result.normalised_residuals, result.solver["prefit_attempts"])
-    assert s["inside_3_sigma"] == s["parameters"], s["z"]
+    assert_verdict(result, truth, all_inside=True)
 
 
 def test_expected_reading_of_a_saturating_sensor_matches_monte_carlo():
