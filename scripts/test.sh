@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Set everything up (idempotent) and run the test suite.
 #   bash scripts/test.sh            everything (what CI runs)
-#   bash scripts/test.sh --quick    the quick tier for day-to-day work: no `slow` or `minutes` tests
+#   bash scripts/test.sh --quick    the quick tier for day-to-day work: no `slow` (over about 2 s) or `minutes` tests
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$here"

@@ -43,6 +43,7 @@ def _name(path: Path) -> str:
     return str(path.relative_to(ROOT))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("doc", [p for p in DOC_FILES if "```" in p.read_text(encoding="utf-8")], ids=_name)
 def test_doc_blocks_run_as_written(doc, tmp_path):
     blocks = code_blocks_with_reasons(doc.read_text(encoding="utf-8"))

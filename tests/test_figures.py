@@ -146,6 +146,7 @@ def _table():
     return rows
 
 
+@pytest.mark.slow
 def test_sweep_summary_figures_show_the_differences(tmp_path):
     from pneusim.plotting import figure_hook
     from pneusim.scenario.sweep_plots import summary_plots
@@ -183,6 +184,7 @@ def test_sweep_and_ablation_figures_of_a_run(tmp_path):
 
 
 # ------------------------------------------------------------------ MRE, fit, plot, friction
+@pytest.mark.slow
 def test_mre_report_figures(tmp_path):
     from pneusim.mre.run import run_mre
     from pneusim.mre.scenario import validate_mre
@@ -221,6 +223,7 @@ def test_fit_report_figure_and_page(recording_file, tmp_path):
     assert "| pressure in chamber A |" in md and "; pressure_a_Pa" not in md
 
 
+@pytest.mark.slow
 def test_plot_command_figure(recording_file, tmp_path):
     with checked_figures() as found:
         assert main(["plot", str(recording_file), "--out", str(tmp_path / "run.png")]) == 0

@@ -81,6 +81,7 @@ def _run_checked(nb, tmp_path, name):
     return _figures_report(nb), seconds
 
 
+@pytest.mark.slow
 def test_the_kernel_check_sees_shown_and_unshown_figures(tmp_path):
     """A bare figure shown with plt.show, and one left open at the end of its cell, are both found wanting."""
     nb = nbformat.v4.new_notebook(cells=[
@@ -93,6 +94,7 @@ def test_the_kernel_check_sees_shown_and_unshown_figures(tmp_path):
     assert sum("no label" in p for p in report["problems"]) == 4
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("script", SCRIPTS, ids=lambda p: p.stem)
 def test_notebook_is_paired_runs_and_its_figures_meet_the_standard(script, tmp_path):
     ipynb = script.with_suffix(".ipynb")

@@ -100,6 +100,7 @@ def run_blocks_of(path: Path, folder: Path) -> int:
     return ran
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("readme", READMES)
 def test_readme_blocks_run_as_written(readme, tmp_path):
     blocks = [b for b in code_blocks((ROOT / readme).read_text(encoding="utf-8")) if b[0] in ("bash", "python")]

@@ -39,6 +39,7 @@ def test_a_writer_that_raises_leaves_no_file(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_writers_that_choose_the_format_by_the_suffix_write_the_same_bytes(tmp_path):
     import matplotlib
 

@@ -149,6 +149,7 @@ def test_check_several_files_and_the_time_at_an_end_stop(tmp_path, capsys):
     assert stops["retracted_s"] == pytest.approx(0.5) and stops["extended_s"] == 0.0
 
 
+@pytest.mark.slow
 def test_practice_recordings_are_plausible_for_their_rigs(shared_dir):
     files = sorted((shared_dir / "practice").glob("*.csv")) + sorted((shared_dir / "practice2").glob("*.csv"))
     assert len(files) > 40

@@ -54,13 +54,22 @@ def test_poles_zeros_and_frequency_response():
     np.testing.assert_allclose(m.freqresp(w), h)
 
 
-def test_round_trip_scipy_and_control():
+def _assert_same_model(back, m):
+    np.testing.assert_allclose(back.B, m.B, atol=1e-12)
+    np.testing.assert_allclose(back.F, m.F, atol=1e-12)
+    assert back.nk == 2 and back.Ts == 0.01
+
+
+def test_round_trip_scipy():
+    m = sysid.idpoly([1.0], [0, 0, 0.3, 0.1], F=[1, -0.9, 0.2], Ts=0.01)
+    _assert_same_model(sysid.from_scipy(sysid.to_scipy(m)), m)
+
+
+@pytest.mark.slow          # python-control takes seconds to import
+def test_round_trip_control():
     import control
     m = sysid.idpoly([1.0], [0, 0, 0.3, 0.1], F=[1, -0.9, 0.2], Ts=0.01)
-    for back in (sysid.from_scipy(sysid.to_scipy(m)), sysid.from_control(sysid.to_control(m))):
-        np.testing.assert_allclose(back.B, m.B, atol=1e-12)
-        np.testing.assert_allclose(back.F, m.F, atol=1e-12)
-        assert back.nk == 2 and back.Ts == 0.01
+    _assert_same_model(sysid.from_control(sysid.to_control(m)), m)
     g = sysid.to_control(m)
     assert g.dt == 0.01
     np.testing.assert_allclose(control.dcgain(g), 0.4 / 0.3)

@@ -21,6 +21,7 @@ def test_public_names_have_docstrings(name):
     assert obj.__doc__ and len(obj.__doc__.strip()) > 20, name
 
 
+@pytest.mark.slow
 def test_sysid_does_not_import_pneusim():
     code = "import sys, sysid; sysid.arx; assert not any(m.startswith('pneusim') for m in sys.modules)"
     subprocess.run([sys.executable, "-c", code], check=True)

@@ -12,6 +12,8 @@ from sysid.statespace import IDSS
 from sysid_helpers import simulate_poly
 
 sippy = pytest.importorskip("sippy_unipi", reason="SIPPY (pip install sippy-unipi) is not installed")
+#: out of the quick tier: SIPPY's first identification of each kind takes seconds
+pytestmark = pytest.mark.slow
 
 A, B, C = [1.0, -1.5, 0.7], [0.0, 1.0, 0.5], [1.0, -0.5, 0.2]
 

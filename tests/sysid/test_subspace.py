@@ -98,6 +98,7 @@ def test_n4sid_rejects_too_short_data():
 
 
 # ------------------------------------------------------------------ evaluated as state space
+@pytest.mark.slow
 def test_high_order_model_is_simulated_as_the_model_its_poles_describe():
     """n4sid(data, 100): A's eigenvalues are inside |z| = 0.9998, but the roots of its characteristic polynomial
     reach |z| = 3.2, so a simulation of the polynomial form overflows and its MSE is inf."""

@@ -26,6 +26,7 @@ def test_noise_free_recovers_coefficients_and_delay():
     assert m.dcgain() == pytest.approx(2.0)
 
 
+@pytest.mark.slow
 def test_noisy_estimates_within_three_sigma_and_delay_found():
     truth = np.r_[DEN[1:], 0.5, 8.0]
     z = []

@@ -133,6 +133,7 @@ def test_rigs_and_effects_list_parameters_with_units_and_ranges(capsys):
     assert "deadband_V" in out and "(>= 0)" in out
 
 
+@pytest.mark.slow
 def test_plot_draws_an_existing_recording(tmp_path, capsys):
     rec = tmp_path / "r.csv"
     assert main(SIM + ["--out", str(rec)]) == 0

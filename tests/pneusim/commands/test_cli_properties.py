@@ -8,6 +8,7 @@ property is cheap.  Any exception escaping :func:`pneusim.cli.main` fails the te
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -70,6 +71,7 @@ def files(draw):
     return rec, draw(st.sampled_from(["none", "cell", "meta", "bytes"])), draw(NUMBERS), draw(st.binary(max_size=300))
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(case=files(), rig=st.sampled_from([None, "paper2-enfield", "nope", "x.toml"]),
        command=st.sampled_from(["check", "plot"]))

@@ -85,6 +85,7 @@ def test_diagnose_refuses_a_report_folder_that_is_a_folder_of_its_recordings(tmp
 
 
 # ---------------------------------------------------------------- results folders
+@pytest.mark.slow
 def test_run_refuses_the_folder_of_another_run_and_replaces_its_own(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     folder = tmp_path / "results" / "tiny-open-loop"
@@ -117,6 +118,7 @@ def test_run_refuses_a_folder_of_results_written_without_a_manifest(tmp_path, ca
     assert (folder / "report.md").read_text() == "# an older run\n"
 
 
+@pytest.mark.slow
 def test_mre_refuses_a_folder_holding_an_earlier_run_and_overwrite_clears_it(tmp_path, capsys):
     mre = tmp_path / "m.toml"
     mre.write_text(MRE_TEXT)
@@ -316,6 +318,7 @@ def test_mre_replay_of_another_rigs_recording_says_what_to_replay(tmp_path, caps
     assert "paper2-enfield" in last and "paper1-mre" in last and "pneusim simulate --rig paper1-mre" in last
 
 
+@pytest.mark.slow
 def test_sigterm_stops_any_command_as_ctrl_c_does_and_leaves_no_partial_file(tmp_path):
     """A sweep stopped by SIGTERM: exit 143, every stored run whole, a restart reuses them."""
     import signal

@@ -9,6 +9,7 @@ from pneusim.cli import main
 from pneusim.recording import read_recording
 
 
+@pytest.mark.slow
 def test_simulate_writes_a_valid_recording_and_plot(tmp_path, capsys):
     out, png = tmp_path / "run.csv", tmp_path / "run.png"
     assert main(["simulate", "--rig", "paper1-mre", "--input", "pulses", "--duration", "1", "--seed", "3",
@@ -69,6 +70,7 @@ def test_an_output_folder_that_cannot_be_created_is_refused_before_any_work(tmp_
     assert "the folder cannot be created" in err and "Traceback" not in err and "simulate" not in err
 
 
+@pytest.mark.slow
 def test_every_practice_recording_reruns_from_the_cli(tmp_path, shared_dir):
     for src in sorted((shared_dir / "practice").glob("practice_*.csv")):
         out = tmp_path / src.name

@@ -56,6 +56,7 @@ def _synthetic(folder, k, seed):
     return [_write_test(folder / f"synthetic_{p}bar.csv", p, k, seed + p) for p in (1, 3, 5, 7)]
 
 
+@pytest.mark.slow
 def test_real_seal_data_need_the_pressure_dependent_law(shared_dir, tmp_path, capsys):
     files = sorted((shared_dir / "data" / "real" / "cylinder_seal_friction_tudelft2021").glob("*.csv"))
     assert len(files) == 12

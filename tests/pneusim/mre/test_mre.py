@@ -39,6 +39,7 @@ def spec(**mre):
 
 @pytest.fixture(scope="module")
 def fast_run(tmp_path_factory):
+    """A 0.3 s run with its report (seconds to draw): the tests that read it are in the slow tier."""
     return run_mre(spec(), tmp_path_factory.mktemp("fast"), mode="fast")
 
 
@@ -50,6 +51,7 @@ def _same_except_timing(a, b, n=None):
             np.testing.assert_array_equal(ca[name][:n], cb[name][:n], err_msg=name)
 
 
+@pytest.mark.slow
 def test_paced_and_fast_loops_give_the_same_recording_and_model(fast_run, tmp_path):
     live = run_mre(spec(), tmp_path, mode="realtime", report=False)
     assert live.summary["stop_reason"] == fast_run.summary["stop_reason"] == "completed"
@@ -64,6 +66,7 @@ def test_paced_and_fast_loops_give_the_same_recording_and_model(fast_run, tmp_pa
         assert f["theta"] == lv["theta"]
 
 
+@pytest.mark.slow
 def test_report_prints_the_identified_transfer_functions_and_timing(fast_run):
     text = (fast_run.out_dir / "report.md").read_text(encoding="utf-8")
     tf = fast_run.summary["identified"]["RLS ARMA order 4"]["transfer_function"]
@@ -76,6 +79,7 @@ def test_report_prints_the_identified_transfer_functions_and_timing(fast_run):
     np.testing.assert_array_equal(theta[-1], fast_run.summary["identified"]["RLS ARMA order 4"]["theta"])
 
 
+@pytest.mark.slow
 def test_report_page_is_self_contained_and_says_what_report_md_says(fast_run):
     """index.html is the same page as report.md (one list of blocks, two renderings), every figure inlined."""
     page = (fast_run.out_dir / "index.html").read_text(encoding="utf-8")
@@ -115,6 +119,7 @@ class _Interrupting:
         self.nulls.append(null_V)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("exc", [KeyboardInterrupt(), RuntimeError("sensor cable pulled")])
 def test_ctrl_c_or_a_fault_leaves_a_complete_valid_recording(fast_run, tmp_path, exc):
     s = spec()
@@ -144,6 +149,7 @@ def test_cli_fault_is_one_line_and_the_recording_stays(tmp_path, capsys):
     assert read_recording(tmp_path / "o" / "recording.csv").n_samples == 60
 
 
+@pytest.mark.slow
 def test_replay_plays_the_recording_back_open_loop(fast_run, tmp_path):
     s = spec(warmup_s=0.0, duration_s=0.2)
     s["controller"]["kp_V_per_m"] = 80.0               # other commands than the recording's

@@ -78,6 +78,7 @@ def test_a_recording_its_own_check_refuses_ends_the_run_with_an_error(tmp_path, 
     assert (tmp_path / "o" / "recording.csv").exists()         # kept: everything taken is on disk
 
 
+@pytest.mark.slow
 def test_sigterm_stops_the_loop_with_the_valve_at_null_and_the_summary_written(tmp_path):
     """``pneusim mre --plant udp:...`` on a rig server: SIGTERM ends the session with the valve at null."""
     f = tmp_path / "m.toml"

@@ -87,6 +87,7 @@ def test_zoom_window_is_where_the_models_miss_most():
     assert 5.7 <= t0 <= 6.2 and 6.3 <= t1 <= 6.8
 
 
+@pytest.mark.slow
 def test_compare_figure_of_several_signals_meets_the_standard(tmp_path):
     t = np.linspace(0.0, 10.0, 1000)
     y = np.sin(t)

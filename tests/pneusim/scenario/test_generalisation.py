@@ -12,6 +12,7 @@ from pneusim.scenario import load_scenario, run_scenario, validate_scenario, wri
 from pneusim.scenario.generalisation import told_rig
 
 
+@pytest.mark.slow
 def test_physical_model_holds_on_an_unseen_supply_where_arx_drops(data_dir, tmp_path):
     result = run_scenario(load_scenario(data_dir / "tiny-generalisation.toml"))
     gen = result.generalisation
@@ -73,6 +74,7 @@ def test_realistic_rigs_are_documented_variants_of_the_data_sheets():
             assert re.search(r"#.*\[(paper|data sheet|measurement|physics|assumption)", line), line
 
 
+@pytest.mark.slow
 def test_paper2_report_shows_the_realistic_rig_beside_the_ideal_and_the_paper(paper2_run):
     out, metrics = paper2_run
     variant = metrics["rig_variants"][0]
@@ -84,6 +86,7 @@ def test_paper2_report_shows_the_realistic_rig_beside_the_ideal_and_the_paper(pa
     assert "Ideal rig, realistic rig and the paper side by side" in (out / "report.md").read_text()
 
 
+@pytest.mark.slow
 def test_paper1_report_shows_the_realistic_rig(paper1_run):
     out, metrics = paper1_run
     rows = metrics["rig_variants"][0]["rows"]

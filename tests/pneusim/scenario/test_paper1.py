@@ -13,6 +13,8 @@ from physical_checks import check_physical_fit_recovers_the_rig
 from independent import h_step, read_predictions, rows_of, rls_history, stats
 
 SCENARIOS = Path(__file__).resolve().parents[3] / "scenarios"
+#: out of the quick tier: every test reads the paper 1 run of the session (the scenario, shortened to 4 s)
+pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")

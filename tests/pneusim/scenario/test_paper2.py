@@ -12,6 +12,8 @@ from independent import arx_ls, read_predictions, rows_of, simulate_estimated_x0
 
 GAIN = 32.808          # paper2-enfield position sensor, V/m
 N_EST = 1000           # 20 s at 10 ms, half for estimation
+#: out of the quick tier: every test reads the paper 2 run of the session (the scenario, shortened to 20 s)
+pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")

@@ -66,6 +66,7 @@ def test_bad_scenario_file_names_file_key_and_expectation(tmp_path, capsys, kwar
     assert not (tmp_path / "out").exists()          # refused before anything ran
 
 
+@pytest.mark.slow
 def test_unknown_rig_through_the_installed_command(tmp_path):
     path = _file(tmp_path)
     path.write_text(path.read_text().replace('name = "paper2-enfield"', 'name = "nosuchrig"'))
@@ -107,6 +108,7 @@ def test_bad_sweep_file_exits_2(tmp_path, data_dir, capsys, text, key):
     assert rc == 2 and key in err and "Traceback" not in err, err
 
 
+@pytest.mark.slow
 def test_run_generic_tiny_scenario(tmp_path, data_dir):
     assert main(["run", str(data_dir / "tiny-open-loop.toml"), "--out", str(tmp_path), "--no-progress"]) == 0
     assert (tmp_path / "report.html").exists() and (tmp_path / "metrics.json").exists()

@@ -39,6 +39,7 @@ def local_run(sweep, tmp_path_factory):
     return out, info
 
 
+@pytest.mark.slow
 def test_local_sweep_table(local_run):
     out, info = local_run
     assert info["n_runs"] == 50 and info["n_failed"] == 1
@@ -102,6 +103,7 @@ def dask_cluster(tmp_path):
                 p.wait()
 
 
+@pytest.mark.slow
 def test_dask_sweep_same_table(local_run, dask_cluster, tmp_path, capsys):
     _, local_info = local_run
     out = tmp_path / "dask"
@@ -113,6 +115,7 @@ def test_dask_sweep_same_table(local_run, dask_cluster, tmp_path, capsys):
     assert os.getpid() not in pids and len(pids) == 2              # both Dask workers ran runs
 
 
+@pytest.mark.slow
 def test_restart_skips_done_runs(sweep, local_run, tmp_path):
     out, local_info = local_run
     # a crashed sweep: copy 45 of the 50 stored runs, then restart
@@ -132,6 +135,7 @@ def test_restart_skips_done_runs(sweep, local_run, tmp_path):
     assert info["n_done_before"] == 49 and info["n_failed"] == 1
 
 
+@pytest.mark.slow
 def test_dask_local_through_the_command_line(tmp_path, capsys):
     """--dask local starts a loopback LocalCluster (here with one worker) for a 5-run sweep."""
     pytest.importorskip("distributed")

@@ -37,6 +37,7 @@ def _fits(table):
     return sorted((r["rig.overrides.moving_mass_kg"], r["identifier"], r["fit_percent"]) for r in table)
 
 
+@pytest.mark.slow
 def test_a_changed_base_or_scenario_runs_again_instead_of_reusing_old_results(folder):
     out = folder / "X"
     s1 = load_sweep(_write(folder, "s1.toml", _sweep_text('"experiment.duration_s" = 2.0')))

@@ -108,6 +108,7 @@ def test_small_linear_algebra_gives_sundials_results_to_the_last_bit(rig2, effec
     assert np.array_equal(S, S_ref)
 
 
+@pytest.mark.slow
 def test_augmented_corrector_is_as_accurate_as_the_staggered_one_and_the_same_states(rig2):
     """The default corrector (state and sensitivities as one augmented state, :mod:`pneusim.solver.sensitivity`)
     against CVODES's staggered corrector, both at the fit's rtol 1e-6, on 40 segments of a closed-loop

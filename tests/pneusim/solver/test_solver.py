@@ -16,6 +16,7 @@ from pneusim.simulate import rerun_recording, simulate
 from pneusim.solver.backends import CvodeBackend, make_backend
 
 
+@pytest.mark.slow
 def test_cvode_agrees_with_scipy_radau_at_tight_tolerance(rig2):
     """Paper-2 closed-loop multisine run: CVODE and Radau differ by < 1e-6 m in position."""
     exp = standard_experiment(rig2, "multisine", 6.0, "closed", seed=2)
@@ -179,6 +180,7 @@ def _effects_from_answer(entry):
     return effects
 
 
+@pytest.mark.slow
 def test_practice_recordings_are_reproduced_by_the_model_with_their_effects(shared_dir):
     """An independent simulator made the practice set; with the answers' effects our model matches it.
 
