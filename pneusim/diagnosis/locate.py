@@ -16,9 +16,9 @@ import numpy as np
 from scipy import stats
 
 from .result import MismatchWindow
-from .rules import FALSE_ALARM, LOCATE_WINDOW_S, LOCATE_WINDOW_SAMPLES, MAX_WINDOWS
+from .rules import EPISODE_GAP, FALSE_ALARM, LOCATE_WINDOW_S, LOCATE_WINDOW_SAMPLES, MAX_EPISODES, MAX_WINDOWS
 
-__all__ = ["operating_conditions", "locate_mismatch", "velocity_estimate", "named_states"]
+__all__ = ["operating_conditions", "locate_mismatch", "velocity_estimate", "named_states", "episodes"]
 
 
 def named_states(fit) -> dict:
@@ -162,3 +162,25 @@ def locate_mismatch(recording, rig, model_states: dict, noise_std: dict, window_
     found.sort(key=lambda w: -w.score)
     found = sorted(found[:max_windows], key=lambda w: (w.t_start_s, w.signal))
     return found, info
+
+
+def episodes(windows: list, duration_s: float, max_episodes: int = MAX_EPISODES) -> list[MismatchWindow]:
+    """Mismatch windows merged into a few episodes a reader can follow: windows closer than
+    :data:`~.rules.EPISODE_GAP` of the recording's duration ``duration_s`` join one episode (its signals joined,
+    the condition of its strongest window, its strongest score); the ``max_episodes`` strongest, in time order.
+    """
+    merged: list[list] = []
+    gap = EPISODE_GAP * duration_s
+    for w in sorted(windows, key=lambda w: w.t_start_s):
+        if merged and w.t_start_s - max(x.t_end_s for x in merged[-1]) <= gap:
+            merged[-1].append(w)
+        else:
+            merged.append([w])
+    out = []
+    for group in merged:
+        strongest = max(group, key=lambda w: w.score)
+        signals = sorted({w.signal for w in group}, key=["position_m", "pressure_a_Pa", "pressure_b_Pa"].index)
+        out.append(MismatchWindow(min(w.t_start_s for w in group), max(w.t_end_s for w in group), ", ".join(signals),
+                                  strongest.condition, strongest.score))
+    out.sort(key=lambda w: -w.score)
+    return sorted(out[:max(1, max_episodes)], key=lambda w: w.t_start_s)
