@@ -228,6 +228,8 @@ def scan_with_refits(run, kept_fit):
     d0 = next(e.values["delay_s"] for e in kept_fit.effects_ if e.name == DELAY)
 
     def refit_at(delay_s):
+        if not run.can_fit(f"the transport delay's refit at {delay_s * 1e3:.4g} ms", 1.0, kept_fit.effects_):
+            return math.inf, None
         run.say(f"transport delay scan: refit at {delay_s * 1e3:.4g} ms")
         fit = run.stages.refit(run.recording, run.rig, others + [make_effect(DELAY, delay_s=delay_s)], kept_fit)
         return estimation_cost(fit, run.noise)[0], fit
@@ -244,10 +246,10 @@ def scan_with_refits(run, kept_fit):
     return best_fit, scan
 
 
-def scan_on_window(run, effects: list, prefit, fit_on_window):
+def scan_on_window(run, effects: list, prefit, fit_on_window, cost):
     """The transport delay of a set of ``effects`` scanned by pre-fits of the set on the window
-    (``fit_on_window(effects)``, None when one fails), walking as :func:`_walk` says from the set's own delay (its
-    pre-fit ``prefit``); returns ``(delay_s, best pre-fit, scan)``, ``scan`` the ``(delay_s, cost)`` of every
+    (``fit_on_window(effects)``, None when one fails; ``cost(pre-fit)`` what is compared), walking as :func:`_walk`
+    says from the set's own delay (its pre-fit ``prefit``); returns ``(delay_s, best pre-fit, scan)``, ``scan`` the ``(delay_s, cost)`` of every
     pre-fit.  A pre-fit costs seconds where a whole refit costs a minute, and the window is where the set was
     chosen."""
     others = [e for e in effects if e.name != DELAY]
@@ -255,9 +257,9 @@ def scan_on_window(run, effects: list, prefit, fit_on_window):
 
     def prefit_at(delay_s):
         pre = fit_on_window(others + [make_effect(DELAY, delay_s=delay_s)])
-        return (pre.cost, pre) if pre is not None else (math.inf, None)
+        return (cost(pre), pre) if pre is not None else (math.inf, None)
 
-    s = _Scan(run, d0, prefit.cost, prefit, prefit_at)
+    s = _Scan(run, d0, cost(prefit), prefit, prefit_at)
     _walk(s)
     ds, cs, k = s.costs()
     return ds[k], s.fits[ds[k]][1], [(d, s.fits[d][0]) for d in sorted(s.fits)]

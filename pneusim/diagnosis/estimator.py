@@ -24,6 +24,8 @@
    found screened on top of the findings' fit, the leaders refitted with them and kept by the keep test;
 8. **drop-one** (:mod:`.joint`) -- each finding refitted out with the others present, removed where the
    others explain the recording as well without it; the findings ranked by what the fit loses without each;
+   where the model still leaves physics unexplained, a finding that leaves the residual above the noise where
+   it acts is a look-alike of what is missing, and is taken out (:mod:`.lookalike`);
 9. **other** (:mod:`.other`) -- where the model with every finding still leaves a residual well above the
    noise, ``other``: where, under which conditions, the closest candidates and why they were rejected.
 
@@ -60,6 +62,7 @@ from .grow import grow_on_window
 from .window_fit import window_fit
 from .joint import drop_one, fit_set_from_data_sheet
 from .locate import episodes, locate_mismatch, named_states
+from .lookalike import name_only_what_explains
 from .other import other_finding
 from .refits import estimation_cost, fit_from_data_sheet, fit_nominal, noise_levels, refit
 from .result import CandidateTrial, DiagnosisResult
@@ -91,6 +94,8 @@ class DiagnosisStages:
     delay_scan : ``(run) -> None`` (:func:`.delay.scan_kept_delay`)
     findings : ``(run, members, fit) -> (members, final fit)`` (:func:`.findings.add_findings`)
     drop_one : ``(run, final fit, {effect: parameters added}) -> (final fit, Dropped)`` (:func:`.joint.drop_one`)
+    lookalikes : ``(run, final fit, importance) -> (final fit, taken out)``
+        (:func:`.lookalike.name_only_what_explains`)
     other : ``(run, final fit, duration_s) -> Finding or None`` (:func:`.other.other_finding`)
 
     What the steps call:
@@ -116,6 +121,7 @@ class DiagnosisStages:
     delay_scan: Callable = scan_kept_delay
     findings: Callable = add_findings
     drop_one: Callable = drop_one
+    lookalikes: Callable = name_only_what_explains
     other: Callable = other_finding
     screen: Callable = screen
     polished_costs: Callable = polished_costs
@@ -258,13 +264,15 @@ class Diagnosis:
         members, final = self.stages.findings(run, members, final)
         n_added = {c.name: c.n_added for c in run.candidates}
         final, dropped = self.stages.drop_one(run, final, n_added)
-        run.final = final
         run.fits_without = {k: v for k, v in dropped.without.items() if k in [e.name for e in final.effects_]}
+        with run.clock.stage("lookalikes"):
+            final, _ = self.stages.lookalikes(run, final, dropped.importance)
+        run.final = final
         if len(final.effects_) == 1:
             run.fits_without = {final.effects_[0].name: run.baseline.fit}
         for e in final.effects_:
             run.trials[e.name].kept = True
-        return make_findings(run, final, dropped.importance)
+        return make_findings(run, final, dropped.importance) if final.effects_ else []
 
     def _result(self, run, name, windows, findings, final, signatures, started) -> DiagnosisResult:
         """The result of ``run``: findings, fits, candidates, the keep test in words, status and timing."""

@@ -68,7 +68,8 @@ def add_findings(run, members: list, final) -> tuple[list, object]:
         added = None
         run.remember(final)
         for eff in order[:ON_TOP_REFITS]:
-            if not run.can_fit(f"the refit of {eff} on top of {', '.join(members)}", 1.0):
+            if not run.can_fit(f"the refit of {eff} on top of {', '.join(members)}", 1.0,
+                               list(final.effects_) + [scores[eff][2].effect]):
                 break
             gain, _, c, screening = scores[eff]
             text = f" (screening explains {gain:.0f} of {base_top:.0f} there)" if math.isfinite(gain) else ""
@@ -143,7 +144,8 @@ def _refit_on_top(run, members: list, final, eff: str, effect, c, screened: str)
                                          fit2.fit_percent, basis.floor)
     trial.status += f"; on top of {first}{screened}: {reason}"
     if (not ok and math.sqrt(c_prev / max(basis.n_residuals, 1)) > MODEL_SHORT
-            and run.can_fit(f"the fit of {first} and {eff} from the data sheet", 1.5)):
+            and run.can_fit(f"the fit of {first} and {eff} from the data sheet", 1.5,
+                            list(final.effects_) + [effect])):
         both = _on_top_from_data_sheet(run, final, c, trial)
         if both is not None:
             fit2, c2 = both
@@ -187,6 +189,8 @@ def make_findings(run, final, importance: dict) -> list[Finding]:
     names = [e.name for e in final.effects_]
     if len(names) == 1:
         importance = {names[0]: final.fit_percent - run.baseline.fit0}
+    elif not importance:   # drop-one did not run (the time budget): what the set adds to the nominal fit
+        importance = {k: final.fit_percent - run.baseline.fit0 for k in names}
     names.sort(key=lambda k: -importance.get(k, -math.inf))
     out = []
     for eff in names:

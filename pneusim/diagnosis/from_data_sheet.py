@@ -206,6 +206,8 @@ class _WholeFits:
             trial.status = why
             run.second_only[eff] = c
             return
+        if not run.can_fit(f"the fit with {c.label} from the data sheet", 1.5, [c.effect]):
+            return
         self.budget -= 1
         run.say(f"fit with {c.label} from the data sheet")
         started = time.perf_counter()

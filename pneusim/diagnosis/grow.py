@@ -9,28 +9,28 @@ effects are chosen together, as a set, on the window where the nominal model mis
 screened start, and each of its variants that is other physics (a leak's paths) on its own.
 
 1. A set starts from one of the :data:`~.rules.GROW_STARTS` best-screened items, pre-fitted again with
-   :data:`~.rules.GROW_EVALUATIONS` evaluations (sets are compared by where their pre-fits end), then continued
-   alone with the continuity at the fit's penalty weight (every cost compared counts the defects left open:
-   an effect with unmeasured states of its own would otherwise buy residual with them,
-   :class:`.window_fit.WindowFit`), as it is again after each round, so that a candidate's gain is not what
-   the same steps find without it;
+   :data:`~.rules.GROW_EVALUATIONS` evaluations (sets are compared by where their pre-fits end);
 2. every item of another effect among the :data:`~.rules.GROW_POOL` best screened alone (and the variants of
-   other physics of their effects, whatever their score alone) is pre-fitted *with the set*, continued from
-   the set's own pre-fit (:func:`.window_fit.window_fit`: its parameters and states, the new effect at its
-   start), :data:`~.rules.GROW_STEP_EVALUATIONS` evaluations;
-3. the one that lowers the window's residual most joins when it pays: the information criterion drops
+   other physics of their effects, whatever their score alone) is pre-fitted *with the set*, from the data
+   sheet, the set's members at their pre-fitted values and the new effect at its start -- not from where the
+   set's pre-fit left the nominal parameters, which bent to make up for what the set lacks -- and so is the
+   set alone, again: a candidate's gain is then what it explains, not what the same steps find without it;
+3. the one that lowers the window's cost most joins when it pays: the information criterion drops
    (``N ln(C_set / C_with) > k ln N``) *and* it takes away at least :data:`~.rules.GROW_SHARE` of what the
    set leaves above the noise (a flexible law takes a little from any structured residual, and far above
-   noise the criterion alone lets nearly every candidate in);
+   noise the criterion alone lets nearly every candidate in).  Every cost compared is what the pre-fit
+   minimised: its residuals *and* its continuity defects (:func:`cost`): an effect with unmeasured states of
+   its own (chamber temperatures, a spool, a supply volume) lowers the residuals by opening its states'
+   defects segment by segment (``docs/decisions/0034``);
 4. a member with variants of other physics (a leak's path) is then tried as each other variant (screened well
    or not: a path alone may explain nothing that it explains beside another effect), the rest of the set
    present, and the better kept;
 5. again from 2., while the set's pre-fit ends above :data:`~.rules.GROW_UNTIL` times the noise and holds
    fewer than ``run.max_findings`` effects;
 6. of the sets grown from each start the better wins (the effect that explains most alone may be a look-alike
-   of two others together): of two as large the lower residual, a larger one only where it pays against the
-   smaller as a joining effect must; a transport delay in it (which no
-   pre-fit moves: it has no gradient) is scanned by pre-fits of the set (:func:`.delay.scan_on_window`).
+   of two others together): of two as large the lower cost, a larger one only where it pays against the
+   smaller as a joining effect must; a transport delay in it (which no pre-fit moves: it has no gradient) is
+   scanned by pre-fits of the set (:func:`.delay.scan_on_window`).
 
 A pre-fit costs seconds where a whole fit costs a minute: the set is then fitted whole once (:mod:`.joint`),
 what it leaves is looked for on top of that fit (:mod:`.findings`), and each member is tested with the others
@@ -47,10 +47,10 @@ from .candidates import Candidate
 from .delay import DELAY, scan_on_window
 from .from_data_sheet import data_sheet_start
 from .refits import effect_at_prefit
-from .rules import (GROW_EVALUATIONS, GROW_POOL, GROW_SHARE, GROW_STARTS, GROW_STEP_EVALUATIONS, GROW_UNTIL,
+from .rules import (GROW_EVALUATIONS, GROW_POOL, GROW_SHARE, GROW_STARTS, GROW_UNTIL, PREFIT_DEFECT_WEIGHT,
                     WINDOW_SAMPLES, bic_penalty, is_solver_failure)
 
-__all__ = ["WindowSet", "window_items", "grow_on_window", "set_effects", "nominal_values"]
+__all__ = ["WindowSet", "window_items", "grow_on_window", "set_effects", "nominal_values", "cost"]
 
 
 @dataclass
@@ -69,13 +69,13 @@ class WindowSet:
         """The set's pre-fit cost on the window as an rms, noise units (infinity before any pre-fit)."""
         if self.prefit is None:
             return math.inf
-        return math.sqrt(self.prefit.cost / max(self.prefit.n_residuals, 1))
+        return math.sqrt(cost(self.prefit) / max(self.prefit.n_residuals, 1))
 
     def criterion(self) -> float:
         """The set's information criterion on the window, ``N ln C + k ln N`` (lower is better)."""
         n = max(self.prefit.n_residuals, 2)
         k = sum(c.n_added for c in self.candidates.values())
-        return n * math.log(max(self.prefit.cost, 1e-300)) + bic_penalty(k, n)
+        return n * math.log(max(cost(self.prefit), 1e-300)) + bic_penalty(k, n)
 
 
 def nominal_values(prefit) -> dict:
@@ -112,28 +112,40 @@ def _fit(run, effects: list, start: int, evaluations: int, warm=None, start_valu
         return None
 
 
+def _effect_values(prefit) -> dict:
+    """The effect parameters of a pre-fit's estimates (``EFFECT.PARAM``)."""
+    return {k: v for k, v in prefit.estimates.items() if "." in k}
+
+
 def _with(run, window: WindowSet, members: list, candidates: dict, start: int):
-    """``members`` (``candidates``) pre-fitted on the window, continued from the set's own pre-fit: a member of
-    the set at its pre-fitted values, a new one at its starting values (its look-alike start scaling the set's
-    nominal values, as alone)."""
+    """``members`` (``candidates``) pre-fitted on the window from the data sheet, the set's members at their
+    pre-fitted values and a new member at its start (its look-alike start scaling the data sheet's values, as
+    alone).  From the data sheet, not from where the set's pre-fit left the nominal parameters: those have bent
+    to make up for what the set lacks, and a true effect started there may end above a look-alike."""
     effects = [effect_at_prefit(candidates[k], window.prefit) if k in window.members else candidates[k].effect
                for k in members]
-    scale = {}
+    values = _effect_values(window.prefit)
     for k in members:
         if k not in window.members:
-            scale.update(candidates[k].start_scale)
-    values = {name: window.prefit.values[name] * factor for name, factor in scale.items()}
-    return _fit(run, effects, start, GROW_STEP_EVALUATIONS, warm=window.prefit, start_values=values)
+            values.update(data_sheet_start(run.rig, candidates[k]) or {})
+    return _fit(run, effects, start, GROW_EVALUATIONS, start_values=values)
+
+
+def cost(pre) -> float:
+    """What a pre-fit on the window minimised: its residuals and its continuity defects weighted as the pre-fit
+    weighs them (``docs/decisions/0034``)."""
+    return pre.objective(PREFIT_DEFECT_WEIGHT)
 
 
 def _pays(window: WindowSet, pre, n_added: int) -> tuple[bool, str]:
     """Whether ``pre`` (the set with one more effect) pays on the window, and why (see the module docstring)."""
     n = max(window.prefit.n_residuals, 2)
-    gain = n * math.log(window.prefit.cost / max(pre.cost, 1e-300)) - bic_penalty(n_added, n)
-    excess = window.prefit.cost - window.prefit.n_residuals
-    share = (window.prefit.cost - pre.cost) / excess if excess > 0 else 0.0
+    before, after = cost(window.prefit), cost(pre)
+    gain = n * math.log(before / max(after, 1e-300)) - bic_penalty(n_added, n)
+    excess = before - window.prefit.n_residuals
+    share = (before - after) / excess if excess > 0 else 0.0
     text = (f"with {', '.join(window.members)} on the window: {window.rms:.3g} -> "
-            f"{math.sqrt(pre.cost / max(pre.n_residuals, 1)):.3g} times the noise, BIC gain {gain:.0f}, "
+            f"{math.sqrt(after / max(pre.n_residuals, 1)):.3g} times the noise, BIC gain {gain:.0f}, "
             f"{100 * share:.0f} % of what the set leaves above the noise")
     return gain > 0 and share >= GROW_SHARE, text
 
@@ -143,11 +155,11 @@ def _better(a: WindowSet, b: WindowSet) -> WindowSet:
     where it pays against the smaller as a joining effect must (the criterion drops, and it takes at least
     :data:`~.rules.GROW_SHARE` of what the smaller leaves above the noise)."""
     if len(a.members) == len(b.members):
-        return a if a.prefit.cost <= b.prefit.cost else b
+        return a if cost(a.prefit) <= cost(b.prefit) else b
     small, large = (a, b) if len(a.members) < len(b.members) else (b, a)
     gain = small.criterion() - large.criterion()
-    excess = small.prefit.cost - small.prefit.n_residuals
-    share = (small.prefit.cost - large.prefit.cost) / excess if excess > 0 else 0.0
+    excess = cost(small.prefit) - small.prefit.n_residuals
+    share = (cost(small.prefit) - cost(large.prefit)) / excess if excess > 0 else 0.0
     return large if gain > 0 and share >= GROW_SHARE else small
 
 
@@ -159,9 +171,10 @@ def _swap_variants(run, window: WindowSet, items: list, start: int) -> None:
                 continue
             trial = dict(window.candidates, **{k: c})
             pre = _fit(run, [effect_at_prefit(trial[m], window.prefit) for m in window.members], start,
-                       GROW_STEP_EVALUATIONS, warm=window.prefit)
-            if pre is not None and pre.cost < window.prefit.cost:
-                window.log[k] += f"; as {c.label} with the rest of the set: {pre.cost:.0f} < {window.prefit.cost:.0f}"
+                       GROW_EVALUATIONS, start_values=_effect_values(window.prefit))
+            if pre is not None and cost(pre) < cost(window.prefit):
+                window.log[k] += (f"; as {c.label} with the rest of the set: {cost(pre):.0f} < "
+                                  f"{cost(window.prefit):.0f}")
                 window.candidates, window.prefit = trial, pre
 
 
@@ -181,11 +194,11 @@ def _grow_from(run, first, items: list, variants: list, start: int) -> WindowSet
             if c.name in window.members or not run.budget.allows(f"the pre-fit of {c.label} with the set", 0.0):
                 continue
             pre = _with(run, window, window.members + [c.name], dict(window.candidates, **{c.name: c}), start)
-            if pre is not None and (c.name not in tried or pre.cost < tried[c.name][1].cost):
+            if pre is not None and (c.name not in tried or cost(pre) < cost(tried[c.name][1])):
                 tried[c.name] = (c, pre)
         if not tried:
             break
-        best = min(tried, key=lambda k: tried[k][1].cost)
+        best = min(tried, key=lambda k: cost(tried[k][1]))
         c, pre = tried[best]
         ok, text = _pays(window, pre, c.n_added)
         run.say(f"window set {', '.join(window.members)} + {c.label}: {text}: {'joins' if ok else 'stops there'}")
@@ -200,11 +213,11 @@ def _grow_from(run, first, items: list, variants: list, start: int) -> WindowSet
 
 
 def _polish(run, window: WindowSet, start: int) -> None:
-    """The set continued alone by as many steps as a candidate gets with it, continuity at the fit's penalty
-    weight: a candidate's gain is then what it explains, not what the same steps find without it."""
-    pre = _fit(run, set_effects(window.members, window.candidates, window.prefit), start, GROW_STEP_EVALUATIONS,
-               warm=window.prefit)
-    if pre is not None and pre.cost < window.prefit.cost:
+    """The set pre-fitted again from the data sheet, its members at their pre-fitted values, as a candidate with
+    it is: a candidate's gain is then what it explains, not what the same steps find without it."""
+    pre = _fit(run, set_effects(window.members, window.candidates, window.prefit), start, GROW_EVALUATIONS,
+               start_values=_effect_values(window.prefit))
+    if pre is not None and cost(pre) < cost(window.prefit):
         window.prefit = pre
 
 
@@ -244,7 +257,8 @@ def _scan_delay(run, window: WindowSet, start: int) -> None:
     """The set's transport delay scanned by pre-fits of the set on the window; the best replaces it."""
     effects = set_effects(window.members, window.candidates, window.prefit)
     delay, best, scan = scan_on_window(run, effects, window.prefit,
-                                       lambda fx: _fit(run, fx, start, GROW_STEP_EVALUATIONS, warm=window.prefit))
+                                       lambda fx: _fit(run, fx, start, GROW_EVALUATIONS,
+                                                       start_values=_effect_values(window.prefit)), cost)
     window.log[DELAY] += ("; delay scanned on the window with the set (" + ", ".join(f"{d * 1e3:.4g} ms {c:.0f}"
                                                                                     for d, c in scan) + ")")
     c = window.candidates[DELAY]

@@ -68,9 +68,9 @@ def fit_set_from_data_sheet(run, window, window_nominal_rms: float):
     explained = window.prefit.normalised_residual <= PREFIT_START * window_nominal_rms
     start = nominal_values(window.prefit) if explained else None
     while members:
-        if not run.can_fit(f"the joint fit of {', '.join(members)}", 1.5):
-            break
         effects = set_effects(members, window.candidates, window.prefit)
+        if not run.can_fit(f"the joint fit of {', '.join(members)}", 1.5, effects):
+            break
         run.say(f"fit with {_names(effects)} together from the data sheet")
         started = time.perf_counter()
         fit, cost = _fit(run, effects, start)
@@ -124,7 +124,7 @@ def drop_one(run, final, n_added: dict):
         cost_final = estimation_cost(final, run.noise)[0]
         failing = []
         for e in list(final.effects_):
-            if not run.can_fit(f"drop-one of {e.name}", 1.0):
+            if not run.can_fit(f"drop-one of {e.name}", 1.0, [x for x in final.effects_ if x is not e]):
                 return final, dropped
             run.say(f"drop-one: {e.name} refitted out, the others present")
             without, cost = _refit_without(run, final, e.name)

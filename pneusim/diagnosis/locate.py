@@ -18,7 +18,8 @@ from scipy import stats
 from .result import MismatchWindow
 from .rules import EPISODE_GAP, FALSE_ALARM, LOCATE_WINDOW_S, LOCATE_WINDOW_SAMPLES, MAX_EPISODES, MAX_WINDOWS
 
-__all__ = ["operating_conditions", "locate_mismatch", "velocity_estimate", "named_states", "episodes"]
+__all__ = ["operating_conditions", "locate_mismatch", "velocity_estimate", "named_states", "episodes",
+           "window_threshold", "windowed_mean_squares"]
 
 
 def named_states(fit) -> dict:
@@ -107,6 +108,36 @@ def _describe(masks: dict, a: int, b: int) -> str:
     return ", ".join(words)
 
 
+def window_threshold(recording, window_s: float | None = None) -> tuple[int, float]:
+    """``(m, threshold)``: the sliding window's length in samples (:data:`~.rules.LOCATE_WINDOW_S`, at least
+    :data:`~.rules.LOCATE_WINDOW_SAMPLES`) and the chi-square quantile of pure noise its mean square exceeds with
+    probability :data:`~.rules.FALSE_ALARM` over the recording (Bonferroni over its windows)."""
+    t = recording.time_s
+    dt = float(t[1] - t[0])
+    m = max(LOCATE_WINDOW_SAMPLES, int(round((window_s or LOCATE_WINDOW_S) / dt)))
+    n_windows = max(1, t.size // m)
+    return m, float(stats.chi2.ppf(1.0 - FALSE_ALARM / n_windows, m) / m)
+
+
+def windowed_mean_squares(recording, model_states: dict, noise_std: dict, m: int) -> dict:
+    """``{signal: (N,) mean square of its residual over the sensor noise, over a sliding window of m samples}``
+    for every measured signal the model gives (position, and the pressures when recorded)."""
+    measured = {"position_m": recording.position_m}
+    if recording.has_pressures:
+        measured["pressure_a_Pa"] = recording.pressure_a_Pa
+        measured["pressure_b_Pa"] = recording.pressure_b_Pa
+    out = {}
+    for name, y in measured.items():
+        yhat = model_states.get(name)
+        sigma = float(noise_std.get(name, 0.0))
+        if yhat is None or not sigma > 0:
+            continue
+        z2 = ((y - yhat) / sigma) ** 2
+        z2 = np.where(np.isfinite(z2), z2, 0.0)
+        out[name] = np.convolve(z2, np.ones(m) / m, mode="same")
+    return out
+
+
 def locate_mismatch(recording, rig, model_states: dict, noise_std: dict, window_s: float | None = None,
                     max_windows: int = MAX_WINDOWS) -> tuple[list[MismatchWindow], dict]:
     """Windows where the residual of a signal exceeds what its sensor noise explains.
@@ -134,25 +165,11 @@ def locate_mismatch(recording, rig, model_states: dict, noise_std: dict, window_
         and per signal the fraction of the recording flagged.
     """
     t = recording.time_s
-    dt = float(t[1] - t[0])
-    m = max(LOCATE_WINDOW_SAMPLES, int(round((window_s or LOCATE_WINDOW_S) / dt)))
     n = t.size
-    n_windows = max(1, n // m)
-    threshold = float(stats.chi2.ppf(1.0 - FALSE_ALARM / n_windows, m) / m)
+    m, threshold = window_threshold(recording, window_s)
     masks = operating_conditions(recording, rig)
     found, info = [], {"threshold": threshold, "window_samples": m, "flagged_fraction": {}}
-    measured = {"position_m": recording.position_m}
-    if recording.has_pressures:
-        measured["pressure_a_Pa"] = recording.pressure_a_Pa
-        measured["pressure_b_Pa"] = recording.pressure_b_Pa
-    for name, y in measured.items():
-        yhat = model_states.get(name)
-        sigma = float(noise_std.get(name, 0.0))
-        if yhat is None or not sigma > 0:
-            continue
-        z2 = ((y - yhat) / sigma) ** 2
-        z2 = np.where(np.isfinite(z2), z2, 0.0)
-        mean_sq = np.convolve(z2, np.ones(m) / m, mode="same")
+    for name, mean_sq in windowed_mean_squares(recording, model_states, noise_std, m).items():
         flagged = mean_sq > threshold
         info["flagged_fraction"][name] = float(np.mean(flagged))
         edges = np.flatnonzero(np.diff(np.concatenate([[0], flagged.astype(int), [0]])))

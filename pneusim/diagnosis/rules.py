@@ -34,8 +34,8 @@ __all__ = [
     "RIVAL_WINDOW", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS",
     "MIN_IMPROVEMENT_POINTS", "ERROR_SHRINK", "CLEARLY_SHORT", "AT_NOISE", "PERFECT_ERROR",
     "DELAY_SCAN_ERROR_RATIO", "SCAN_FACTOR", "SCAN_REFITS", "DELAY_GRID_PER_SAMPLE", "MIN_DELAY_SAMPLES",
-    "ON_TOP_REFITS", "OTHER_RESIDUAL", "MAX_CLOSEST", "GROW_SHARE", "GROW_EVALUATIONS", "GROW_STEP_EVALUATIONS", "GROW_UNTIL",
-    "GROW_STARTS", "GROW_POOL", "TIME_BUDGET_S", "SOLVER_FAILURES",
+    "ON_TOP_REFITS", "OTHER_RESIDUAL", "MAX_CLOSEST", "ACTS_SHARE", "LEFT_SHARE", "GROW_SHARE", "GROW_EVALUATIONS", "GROW_UNTIL",
+    "GROW_STARTS", "GROW_POOL", "TIME_BUDGET_S", "STATE_COST", "SOLVER_FAILURES",
     "bic_penalty", "information_gain", "noise_floor_points", "validation_room", "passes_test", "keep_test_text",
     "screening_route", "is_solver_failure", "rules_table", "table_markdown",
 ]
@@ -171,18 +171,22 @@ OTHER_RESIDUAL = 3.0
 #: (candidates) the ``other`` finding names at most this many closest vocabulary candidates, with why each was
 #: rejected
 MAX_CLOSEST = 3
+#: (fraction of the windowed mean square) a finding acts where the model without it misses beyond the noise and
+#: it takes away at least this share of that: what a look-alike and a true effect both do
+ACTS_SHARE = 0.5
+#: (fraction of the samples where it acts) a finding after which the model still misses beyond the noise over more
+#: than this share of where it acts, while physics is left unexplained, is a look-alike: a true effect takes the
+#: residual down to the noise where it acts, a look-alike only part of the way
+LEFT_SHARE = 0.5
 
 # ------------------------------------------------------------------------- several effects, found jointly
 #: (fraction of the excess cost) an effect joins the set chosen on the window only when it takes away at least
 #: this share of what the set leaves above the noise there: a flexible law takes a little from any structured
 #: residual, and far above noise the information criterion alone lets nearly every candidate in
 GROW_SHARE = 0.1
-#: (trust-region evaluations) of the pre-fit from the data sheet that starts a set on the window: sets are
-#: compared by where their pre-fits end, and the set's first effect is pre-fitted to its end
+#: (trust-region evaluations) of each pre-fit of a set on the window: sets are compared by where their pre-fits
+#: end, and a set of several effects needs more steps than one effect alone to get there
 GROW_EVALUATIONS = 120
-#: (trust-region evaluations) of each pre-fit of the set with one more effect, continued from the set's own: it
-#: starts at or near the set's optimum, and a rank needs a few steps downhill from there, not a new optimum
-GROW_STEP_EVALUATIONS = 40
 #: (normalised residual) the set grows on the window while its pre-fit ends above this: below, what is left is
 #: found on top of the set's whole fit and judged on the validation part, not by a window a flexible law can
 #: always bend a little closer
@@ -196,6 +200,10 @@ GROW_POOL = 6
 #: (CPU seconds) a diagnosis is given this much time unless told otherwise; what it has not done by then it does
 #: not start, and the result says so (five minutes: a user waits for a diagnosis, not for a batch job)
 TIME_BUDGET_S = 300.0
+#: (whole fits per added state) what a whole fit costs more for each state its effects add (a spool, chamber
+#: temperatures, a supply volume): the sensitivities grow with the states, and their fast dynamics take the
+#: integrator's steps down -- the budget expects a fit with heat transfer to cost about three nominal fits
+STATE_COST = 1.0
 
 
 # ---------------------------------------------------------------------------------- the keep test, as a rule

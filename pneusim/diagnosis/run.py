@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from typing import Callable, NamedTuple
 
 from .budget import Budget, StageClock
-from .rules import MAX_FINDINGS, MAX_LOOKALIKES, MAX_REFITS
+from .rules import MAX_FINDINGS, MAX_LOOKALIKES, MAX_REFITS, STATE_COST
 
 __all__ = ["NominalBaseline", "DiagnosisRun"]
 
@@ -113,9 +113,12 @@ class DiagnosisRun:
         if known is None or estimation_cost(fit, self.noise)[0] < estimation_cost(known, self.noise)[0]:
             self.set_fits[key] = fit
 
-    def can_fit(self, step: str, fits: float = 1.0) -> bool:
-        """Whether ``step``, ``fits`` whole fits' worth of CPU time, fits in the budget (:meth:`.Budget.allows`)."""
-        return self.budget.allows(step, fits * self.fit_cost_s)
+    def can_fit(self, step: str, fits: float = 1.0, effects=()) -> bool:
+        """Whether ``step``, ``fits`` whole fits' worth of CPU time with ``effects`` switched on, fits in the budget
+        (:meth:`.Budget.allows`): a whole fit costs the nominal fit's time, times ``1 +``
+        :data:`~.rules.STATE_COST` per state the effects add."""
+        states = sum(len(e.states) for e in effects)
+        return self.budget.allows(step, fits * self.fit_cost_s * (1.0 + STATE_COST * states))
 
     @property
     def noise(self) -> dict:

@@ -376,3 +376,62 @@ def test_transport_delay_recovered_between_samples(tmp_path):
     # a standard error from the scan's curvature, and the truth within three of them
     assert std is not None and 0 < std < 0.1 * delay and abs(delay - 0.035) < 3 * std + 0.0005
     assert result.final_fit_percent > 97.0
+
+
+# ------------------------------------------------------------------------------------- several effects at once
+def _within_3_sigma(finding, truth: dict):
+    """Each true parameter within three standard errors of the finding's estimate (and the estimate has one)."""
+    for key, value in truth.items():
+        estimate, std = finding.parameters[key], finding.standard_errors.get(key)
+        assert std is not None and std > 0, (key, finding.standard_errors)
+        assert abs(estimate - value) <= 3 * std, f"{finding.effect}.{key}: {estimate} +- {std}, true {value}"
+
+
+@pytest.mark.minutes
+def test_two_effects_found_together(tmp_path):
+    """A rig with a dead band and a load at once, off its data sheet: both are found (the nominal fit bends its
+    friction to make up for both), each with its parameter within three standard errors, and the validation
+    fit comes to the noise."""
+    effects = [make_effect("valve_deadband", deadband_V=0.4), make_effect("external_load", force_N=-90.0)]
+    path = _simulate(tmp_path, effects, loop="closed", kind="steps", seed=7, duration=30.0)
+    result = diagnose(path)
+    assert sorted(result.effects) == ["external_load", "valve_deadband"], result.summary()
+    found = {f.effect: f for f in result.findings}
+    _within_3_sigma(found["valve_deadband"], {"deadband_V": 0.4})
+    _within_3_sigma(found["external_load"], {"force_N": -90.0})
+    assert result.final_fit_percent > 98.0 and result.status == "complete"
+    assert all(f.improvement_points > 0.5 for f in result.findings)       # each needed with the other present
+
+
+@pytest.mark.minutes
+def test_three_effects_found_together(tmp_path):
+    """A dead band, a load and friction twice as high retracting at once: all three found, each parameter within
+    three standard errors, most important first."""
+    effects = [make_effect("valve_deadband", deadband_V=0.4), make_effect("external_load", force_N=-90.0),
+               make_effect("friction_asymmetry", retract_factor=2.0)]
+    path = _simulate(tmp_path, effects, loop="closed", kind="steps", seed=7, duration=30.0)
+    result = diagnose(path)
+    assert sorted(result.effects) == ["external_load", "friction_asymmetry", "valve_deadband"], result.summary()
+    found = {f.effect: f for f in result.findings}
+    _within_3_sigma(found["valve_deadband"], {"deadband_V": 0.4})
+    _within_3_sigma(found["external_load"], {"force_N": -90.0})
+    _within_3_sigma(found["friction_asymmetry"], {"retract_factor": 2.0})
+    points = [f.improvement_points for f in result.findings]
+    assert points == sorted(points, reverse=True)
+    assert result.final_fit_percent > 98.0
+
+
+@pytest.mark.minutes
+def test_physics_outside_the_vocabulary_answers_other(shared_dir):
+    """A recording of the independent practice simulator whose valve has one port's flow paths at 0.63 times the
+    other's (outside the vocabulary; closed-loop random steps with pressures): the answer is ``other``, with
+    where and under which conditions, and no vocabulary name."""
+    path = shared_dir / "practice3" / "practice3_27.csv"
+    if not path.exists():
+        pytest.skip(f"no practice3 set at {path.parent}")
+    result = diagnose(path)
+    assert result.effects == ["other"], result.summary()
+    other = result.findings[0]
+    assert other.mismatch and all(w.condition for w in other.mismatch)
+    assert other.closest and all(c["why_rejected"] for c in other.closest)
+    assert "something not in the vocabulary" in other.evidence

@@ -111,7 +111,7 @@ def _grow_with_stand_ins(scores: dict, rms_of_set):
         rms = rms_of_set(labels)
         n = 2000
         return SimpleNamespace(cost=rms ** 2 * n, n_residuals=n, normalised_residual=rms, estimates={}, values={},
-                               samples=n)
+                               samples=n, objective=lambda weight: rms ** 2 * n)
 
     basis = NominalBaseline(NOISE, 30.0 ** 2 * N, N, 0.0, 0.2, 0.3, None)
     run = stand_in_run(basis, window_fit=window_fit)
@@ -223,3 +223,52 @@ def test_the_budget_refuses_a_step_that_does_not_fit_and_says_which():
         pass
     timing = clock.timing()
     assert set(timing) == {"screening_s", "cpu_by_stage"} and timing["screening_s"] >= 0.0
+
+
+# ------------------------------------------------------------------------------------------------ look-alikes
+class _TrajectoryFit(StandInFit):
+    """A stand-in fit with a position trajectory (the model's reading at every sample)."""
+
+    def __init__(self, rms, fit_percent, effects, position):
+        super().__init__(rms, fit_percent, effects, n=position.size)
+        self.position = position
+        self.model = SimpleNamespace(state_names=["position_m", "velocity_m_per_s"])
+
+    def trajectory(self):
+        return np.column_stack([self.position, np.zeros(self.position.size)])
+
+
+def _lookalike_case(kept_share: float):
+    """A recording whose model without the finding misses by a bump of 40 noise stds over 2-4 s and by another
+    over 6-8 s; the finding takes away ``kept_share`` of the first bump and nothing of the second."""
+    rng = np.random.default_rng(1)
+    t = np.arange(0.0, 10.0, 0.001)
+    bump_a = np.where((t > 2) & (t < 4), 40e-4, 0.0)
+    bump_b = np.where((t > 6) & (t < 8), 40e-4, 0.0)
+    measured = 0.05 + bump_a + bump_b + rng.normal(0.0, 1e-4, t.size)
+    recording = SimpleNamespace(time_s=t, position_m=measured, n_samples=t.size, has_pressures=False)
+    effect = make_effect("external_load")
+    without = _TrajectoryFit(20.0, 80.0, [], np.full(t.size, 0.05))
+    final = _TrajectoryFit(12.0, 88.0, [effect], 0.05 + kept_share * bump_a)
+    basis = NominalBaseline({"position_m": 1e-4}, 20.0 ** 2 * t.size, t.size, 80.0, 0.2, 0.3, without)
+    run = stand_in_run(basis, recording, trials=_trials("external_load"))
+    return run, final, without
+
+
+def test_a_finding_that_leaves_the_residual_where_it_acts_is_a_look_alike():
+    """Physics outside the vocabulary is missing over 2-4 s and 6-8 s; a load takes away 60 % of the first
+    stretch (a look-alike: the model with it still misses there) -- it is taken out and not named; an effect that
+    takes all of the first stretch away (the second is other physics, elsewhere) is a true effect and stays."""
+    from pneusim.diagnosis.lookalike import name_only_what_explains, residual_left
+
+    run, final, without = _lookalike_case(0.6)
+    share, samples = residual_left(run, final, without)
+    assert share > 0.9 and samples > 1000
+    kept, out = name_only_what_explains(run, final, {})
+    assert out == ["external_load"] and kept is without
+    assert "look-alike" in run.trials["external_load"].status and not run.trials["external_load"].kept
+    run, final, without = _lookalike_case(1.0)
+    share, samples = residual_left(run, final, without)
+    assert share < 0.05 and samples > 1000
+    kept, out = name_only_what_explains(run, final, {})
+    assert out == [] and kept is final
