@@ -339,7 +339,8 @@ class PhysicalFit:
         run.predicted = route
         if route["kept"]:
             run.fits.append((res.objective, len(START_FACTORS), res))
-        innovations = ", ".join(f"{a['rms_innovations']:.3g} (start {a['start'] + 1}, {a['seconds']:.1f} s)"
+        innovations = ", ".join(f"{a['rms_innovations']:.3g} (start {a['start'] + 1}"
+                                + ("" if a["stages"] > 1 else ", broadest stage only") + f", {a['seconds']:.1f} s)"
                                 for a in route["attempts"])
         run.say(f"prediction-error route: filter innovations {innovations}"
                 + (", tracked starts " + rounds_text(route) if "rounds" in route else "")

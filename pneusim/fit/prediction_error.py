@@ -32,12 +32,12 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .parameters import clip_inside
-from .rules import (HELD_BROAD, HELD_UNTIL, PREDICTION_ERROR_EVALUATIONS, PREDICTION_ERROR_TOLERANCE, PRESSURE_FACTOR,
-                    PROCESS_SCHEDULE)
+from .rules import (ABOVE_NOISE_WARNING, HELD_BROAD, HELD_UNTIL, PREDICTION_ERROR_EVALUATIONS,
+                    PREDICTION_ERROR_TOLERANCE, PRESSURE_FACTOR, PROCESS_SCHEDULE, SAME_PREFIT)
 from .shooting import ShootingProblem
 from .tracking import process_std, run_filter
 
-__all__ = ["prediction_error_fit", "PROCESS_SCHEDULE", "PRESSURE_FACTOR"]
+__all__ = ["prediction_error_fit", "prediction_error_attempts", "PROCESS_SCHEDULE", "PRESSURE_FACTOR"]
 
 
 def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.ndarray, lower: np.ndarray,
@@ -106,3 +106,47 @@ def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.nd
     info = {"stages": stages, "rms_innovations": stages[-1]["rms_innovations"],
             "seconds": sum(s["seconds"] for s in stages)}
     return w[:nf], w[nf:] * pb.x_scale, info
+
+
+def prediction_error_attempts(pb: ShootingProblem, starts, x_first: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                              give_up_above: float = np.inf, schedule=PROCESS_SCHEDULE) -> list:
+    """The prediction-error fit from several starts of the same parameters, as far as needed: ``starts`` (scaled
+    parameter vectors, the first the start itself, the others nearby; ``x_first`` the first state, SI).
+
+    From the first start the whole ``schedule`` (:func:`prediction_error_fit`).  Where that does not end at the
+    innovations' noise level (:data:`~.rules.ABOVE_NOISE_WARNING`), and its first stage did not end above
+    ``give_up_above`` (a model that lacks physics, which no start supplies): the first, broadest stage from each
+    other start, then the rest of the schedule from those landings in the order of their innovations, lowest
+    first, until one ends at the noise level, or ends within :data:`~.rules.SAME_PREFIT` (relative) of where an
+    earlier one did (the schedule ends in the same basin from here: no draw).
+
+    Why: from the data sheet, where the broad filter lands, and where the sharper stages take a landing, is a
+    draw of the last bits of the arithmetic on a chaotic recording, and a landing with lower innovations is more
+    often the basin whose sharp stages reach the noise (``docs/decisions/0103``).
+
+    Returns ``[(theta, x_first, info), ...]``, one per start continued to the end (its ``info`` as
+    :func:`prediction_error_fit`'s, with ``"start"`` its index in ``starts``), and the landings not continued
+    as ``(None, None, info)`` with their one stage.
+    """
+    theta, first, info = prediction_error_fit(pb, starts[0], x_first, lower, upper, schedule, give_up_above)
+    out = [(theta, first, {**info, "start": 0})]
+    if info["rms_innovations"] <= ABOVE_NOISE_WARNING or not info["stages"][0]["rms_innovations"] <= give_up_above:
+        return out
+    landings = [(k, *prediction_error_fit(pb, start, x_first, lower, upper, schedule[:1], give_up_above))
+                for k, start in enumerate(starts[1:], 1)]
+    ends, order = [info["rms_innovations"]], sorted(landings, key=lambda landing: (landing[3]["rms_innovations"],
+                                                                                   landing[0]))
+    for n, (k, theta, first, landed) in enumerate(order):
+        if not landed["rms_innovations"] <= give_up_above:
+            out += [(None, None, {**rest[3], "start": rest[0]}) for rest in order[n:]]
+            break
+        theta, first, rest = prediction_error_fit(pb, theta, first, lower, upper, schedule[1:], give_up_above)
+        out.append((theta, first, {"stages": landed["stages"] + rest["stages"], "start": k,
+                                   "rms_innovations": rest["rms_innovations"],
+                                   "seconds": landed["seconds"] + rest["seconds"]}))
+        if rest["rms_innovations"] <= ABOVE_NOISE_WARNING or any(abs(rest["rms_innovations"] / end - 1.0) < SAME_PREFIT
+                                                                 for end in ends):
+            out += [(None, None, {**later[3], "start": later[0]}) for later in order[n + 1:]]
+            break
+        ends.append(rest["rms_innovations"])
+    return out

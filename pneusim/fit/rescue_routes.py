@@ -10,7 +10,7 @@ import time
 import numpy as np
 
 from .initial import initial_starts
-from .prediction_error import prediction_error_fit
+from .prediction_error import prediction_error_attempts
 from .rules import (ABOVE_NOISE_WARNING, CLEARLY_BETTER, FIT_DEFECT_WEIGHTS, NEARBY_START, PLAUSIBLE_INNOVATIONS,
                     PREDICTION_ERROR_ATTEMPTS, TRACKED_ROUNDS)
 from .shooting import ShootingProblem
@@ -108,11 +108,11 @@ def nearby_start(theta0: np.ndarray, attempt: int) -> np.ndarray:
 def prediction_error_route(window: ShootingProblem, pb: ShootingProblem, lower, upper, theta0, x_first,
                            rms: float, finish):
     """From the start ``theta0`` (scaled free parameters; ``x_first`` the first state, SI): the prediction-error
-    fit on the pre-fit's ``window`` (:func:`.prediction_error.prediction_error_fit`), from nearby starts in turn
-    (:func:`nearby_start`, the first the start itself) until one ends at the innovations' noise level,
-    :data:`~.rules.PREDICTION_ERROR_ATTEMPTS` at most, the lowest kept; then, from its parameters and first state, :func:`tracked_route` on the whole
-    estimation part ``pb`` against the best fit so far (normalised residual ``rms``), ``finish`` on its best
-    point.
+    fit on the pre-fit's ``window`` from the start and, where that does not end at the innovations' noise level,
+    from :data:`~.rules.PREDICTION_ERROR_ATTEMPTS` ``- 1`` nearby starts (:func:`nearby_start`) as far as needed
+    (:func:`.prediction_error.prediction_error_attempts`), the lowest kept; then, from its parameters and first
+    state, :func:`tracked_route` on the whole estimation part ``pb`` against the best fit so far (normalised
+    residual ``rms``), ``finish`` on its best point.
 
     Why: where the piston stick-slips from sample to sample the shooting problem's landscape is rippled by
     every mistimed slip and the pre-fit from a start tens of percent off stops in a wrong basin; the filter's
@@ -130,18 +130,14 @@ def prediction_error_route(window: ShootingProblem, pb: ShootingProblem, lower, 
     innovations, the tracked route's rounds and seconds.
     """
     started = time.perf_counter()
-    fits = []
-    for attempt in range(PREDICTION_ERROR_ATTEMPTS):
-        theta, first, pem = prediction_error_fit(window, nearby_start(theta0, attempt), x_first, lower[:pb.n_free],
-                                                 upper[:pb.n_free], give_up_above=PLAUSIBLE_INNOVATIONS)
-        fits.append((pem["rms_innovations"], attempt, theta, first, pem))
-        at_noise = pem["rms_innovations"] <= ABOVE_NOISE_WARNING
-        if at_noise or not pem["stages"][0]["rms_innovations"] <= PLAUSIBLE_INNOVATIONS:
-            break
-    rms_innovations, _, theta, first, pem = min(fits, key=lambda f: (f[0], f[1]))
+    attempts = prediction_error_attempts(window, [nearby_start(theta0, k) for k in range(PREDICTION_ERROR_ATTEMPTS)],
+                                         x_first, lower[:pb.n_free], upper[:pb.n_free],
+                                         give_up_above=PLAUSIBLE_INNOVATIONS)
+    rms_innovations, theta, first, pem = min(((a[2]["rms_innovations"], *a) for a in attempts if a[0] is not None),
+                                             key=lambda a: (a[0], a[3]["start"]))
     info = {"prediction_error": pem, "theta": theta.tolist(),
-            "attempts": [{"start": f[1], "rms_innovations": f[0], "first_stage": f[4]["stages"][0]["rms_innovations"],
-                          "seconds": f[4]["seconds"]} for f in fits]}
+            "attempts": [{"start": a[2]["start"], "rms_innovations": a[2]["rms_innovations"],
+                          "stages": len(a[2]["stages"]), "seconds": a[2]["seconds"]} for a in attempts]}
     done = None
     if rms_innovations <= PLAUSIBLE_INNOVATIONS:
         starts = np.tile(first, (pb.n_segments, 1))   # only the first is used: the filter tracks the rest
