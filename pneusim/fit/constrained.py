@@ -59,13 +59,10 @@ def settle_gauss_newton(pb: ShootingProblem, v, rms: float, rtol: float, lower, 
     recordings of another simulator the steps may not converge at all, so a step that does not halve the
     next one hands over at once (``docs/decisions/0010``).
     """
-    from scipy import sparse
-    from scipy.sparse.linalg import spsolve
-
     if not rms <= ABOVE_NOISE_WARNING:
         return None
     tolerance = ACCEPTABLE_DEFECT_FACTOR * DEFECT_TOL_PER_RTOL * rtol    # the IPOPT run's acceptable level
-    nf, n_v = pb.n_free, pb.n_v
+    nf = pb.n_free
     v = np.asarray(v, float).copy()
     e = pb.evaluate(v, derivatives=True)
     if not e["ok"]:
@@ -74,9 +71,7 @@ def settle_gauss_newton(pb: ShootingProblem, v, rms: float, rtol: float, lower, 
     last = None                                        # the last iterate: (v, residual sum, largest defect)
     for steps in range(SETTLED_STEPS + 1):
         r, g = e["r"], e["g"]
-        jr, jg = pb.jacobians(v)
-        kkt = sparse.bmat([[damped_gauss_newton(jr.T @ jr), jg.T], [jg, None]]).tocsc()
-        delta = spsolve(kkt, np.concatenate([-(jr.T @ r), -g]))[:n_v]
+        delta = _gauss_newton_step(pb, v, r, g)
         if not np.all(np.isfinite(delta)):
             return None
         defect, cost = float(np.max(np.abs(g), initial=0.0)), float(np.dot(r, r))
@@ -107,6 +102,17 @@ def settle_gauss_newton(pb: ShootingProblem, v, rms: float, rtol: float, lower, 
             return None
         v = trial
     return None
+
+
+def _gauss_newton_step(pb: ShootingProblem, v, r, g) -> np.ndarray:
+    """The generalised Gauss-Newton step at ``v`` (residuals ``r``, defects ``g``): the linearised residuals
+    minimised subject to the linearised continuity, one sparse KKT solve with IPOPT's damped matrix."""
+    from scipy import sparse
+    from scipy.sparse.linalg import spsolve
+
+    jr, jg = pb.jacobians(v)
+    kkt = sparse.bmat([[damped_gauss_newton(jr.T @ jr), jg.T], [jg, None]]).tocsc()
+    return spsolve(kkt, np.concatenate([-(jr.T @ r), -g]))[:pb.n_v]
 
 
 def solve_ipopt_exact(pb: ShootingProblem, v, lower, upper, max_iter: int, rtol: float, penalty: float,
