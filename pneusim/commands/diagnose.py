@@ -54,9 +54,6 @@ def register(sub) -> None:
                    help="leading candidates confirmed by a whole refit, one per look-alike family (default 3)")
     p.add_argument("--max-lookalikes", type=int, default=2, metavar="K",
                    help="look-alikes of the winning candidate refitted after them (default 2)")
-    p.add_argument("--time-budget", type=float, default=300.0, metavar="S",
-                   help="CPU seconds one recording's diagnosis may use (default 300); what does not fit is not "
-                        "started, and the result says so")
     p.add_argument("--json", metavar="OUT.json", help="write the JSON result (one recording)")
     p.add_argument("--report", metavar="DIR", help="write the report folder (open DIR/index.html); for "
                                                    "several recordings, the folder of all reports and the summary")
@@ -84,13 +81,11 @@ def run(args) -> int:
     for option, value in (("--max-refits", args.max_refits), ("--max-lookalikes", args.max_lookalikes)):
         if value < 0:
             raise PneusimError(f"{option} must be >= 0, got {value}")
-    if not args.time_budget > 0:
-        raise PneusimError(f"--time-budget must be a number of seconds > 0, got {args.time_budget}")
     if args.rig:
         load_rig_file(args.rig)  # an unknown rig is reported before any work
     files = expand_recordings(args.recordings)
     options = {"effects": args.effect, "validation_fraction": args.validation_fraction,
-               "max_refits": args.max_refits, "max_lookalikes": args.max_lookalikes, "time_budget_s": args.time_budget}
+               "max_refits": args.max_refits, "max_lookalikes": args.max_lookalikes}
     identity = {"recordings": [file_digest(f) for f in files], "rig": args.rig, "options": options}
     inputs = {f"the recording {f}": f for f in files}
     many = len(files) > 1 or any(Path(r).is_dir() for r in args.recordings)

@@ -130,8 +130,6 @@ def _confirm(run, eff: str, variant: tuple) -> None:
     """Refit with ``eff`` warm from the nominal fit, from its screened values, and apply the keep test."""
     score, c, s = variant
     trial = run.trials[eff]
-    if not run.can_fit(f"the refit with {c.label}", 1.0, [c.effect]):
-        return
     t0 = time.perf_counter()
     run.say(f"refit with {c.label}")
     try:

@@ -32,7 +32,7 @@ from .rules import (DELAY_GRID_PER_SAMPLE, DELAY_LAG_CORRELATION, DELAY_LAG_FACT
                     MIN_DELAY_SAMPLES, SCAN_FACTOR, SCAN_REFITS, is_solver_failure)
 
 __all__ = ["DELAY", "screened_delays", "ScreenedDelays", "refine_from_screening", "delay_could_lead",
-           "scan_kept_delay", "scan_with_refits", "scan_on_window", "SCAN_FACTOR", "SCAN_REFITS"]
+           "scan_kept_delay", "scan_with_refits", "SCAN_FACTOR", "SCAN_REFITS"]
 
 #: the effect estimated by scans (its delay is ``searched``: no gradient)
 DELAY = "transport_delay"
@@ -152,25 +152,29 @@ def scan_kept_delay(run) -> None:
 
 
 class _Scan:
-    """The fits of one delay scan, by delay on the grid: ``fits[delay] = (cost, fit or None, seconds)``;
-    ``evaluate(delay_s) -> (cost, fit)`` fits at one delay (a whole refit, or a pre-fit on the window)."""
+    """The refits of one delay scan, by delay on the grid: ``fits[delay] = (cost, fit or None, seconds)``."""
 
-    def __init__(self, run, d0: float, cost0: float, fit0, evaluate):
-        self.run, self.evaluate = run, evaluate
+    def __init__(self, run, kept_fit):
+        self.run, self.kept_fit = run, kept_fit
         self.dt = run.recording.sample_time_s
-        self.d0 = d0
-        self.fits = {d0: (cost0, fit0, 0.0)}
+        self.d0 = next(e.values["delay_s"] for e in kept_fit.effects_ if e.name == DELAY)
+        self.others = [e for e in kept_fit.effects_ if e.name != DELAY]
+        self.fits = {self.d0: (estimation_cost(kept_fit, run.noise)[0], kept_fit, 0.0)}
         self.budget = SCAN_REFITS
 
     def at(self, delay_s: float) -> float:
-        """Fit at ``delay_s`` (on the grid) unless done or out of budget; returns the delay on the grid."""
+        """Refit at ``delay_s`` (on the grid) unless done or out of budget; returns the delay on the grid."""
         delay_s = _on_grid(delay_s, self.dt)
         if delay_s in self.fits or self.budget <= 0:
             return delay_s
         self.budget -= 1
         started = time.perf_counter()
+        run = self.run
+        run.say(f"transport delay scan: refit at {delay_s * 1e3:.4g} ms")
         try:
-            cost, fit = self.evaluate(delay_s)
+            fit = run.stages.refit(run.recording, run.rig, self.others + [make_effect(DELAY, delay_s=delay_s)],
+                                   self.kept_fit)
+            cost = estimation_cost(fit, run.noise)[0]
         except Exception as exc:  # noqa: BLE001 - a delay that cannot be fitted is left out
             if not is_solver_failure(exc):
                 raise
@@ -185,11 +189,17 @@ class _Scan:
         return ds, cs, int(np.argmin(cs))
 
 
-def _walk(s: _Scan) -> None:
-    """From the first delay ``d``: ``d * 1.5`` and ``d / 1.5`` (:data:`~.rules.SCAN_FACTOR`), on by the same factor
-    while the cost falls, the minimum of the parabola in ``log(delay)`` through the best and its neighbours, then
-    the wider side of the bracket halved until the neighbours are a grid step (a tenth of a sample) from the best;
-    at most :data:`~.rules.SCAN_REFITS` fits."""
+def scan_with_refits(run, kept_fit):
+    """Refit at delays around ``kept_fit``'s (a fit with a transport delay) and return
+    ``(best_fit, scan)``: the fit of lowest estimation residual sum of squares (``kept_fit`` itself
+    when no other is lower) and the ``(delay_s, cost, seconds)`` of every fit tried, by delay.
+
+    From the kept delay ``d`` the scan refits at ``d * 1.5`` and ``d / 1.5`` (:data:`~.rules.SCAN_FACTOR`),
+    walks on by the same factor while the residual falls, then refits at the minimum of the parabola in
+    ``log(delay)`` through the best delay and its neighbours, then halves the wider side of the bracket until
+    the neighbours are a grid step (a tenth of a sample) from the best; at most :data:`~.rules.SCAN_REFITS`
+    refits (``run.stages.refit``).  A refit that fails is left out of the scan."""
+    s = _Scan(run, kept_fit)
     s.at(s.d0 * SCAN_FACTOR)
     s.at(s.d0 / SCAN_FACTOR)
     while s.budget > 1:
@@ -215,27 +225,6 @@ def _walk(s: _Scan) -> None:
         if middle in s.fits:
             break                                  # neighbours a grid step away
         s.at(middle)
-
-
-def scan_with_refits(run, kept_fit):
-    """Refit at delays around ``kept_fit``'s (a fit with a transport delay) and return
-    ``(best_fit, scan)``: the fit of lowest estimation residual sum of squares (``kept_fit`` itself
-    when no other is lower) and the ``(delay_s, cost, seconds)`` of every fit tried, by delay.
-
-    The scan walks as :func:`_walk` says, each point a whole refit warm from ``kept_fit`` (``run.stages.refit``).
-    A refit that fails is left out of the scan."""
-    others = [e for e in kept_fit.effects_ if e.name != DELAY]
-    d0 = next(e.values["delay_s"] for e in kept_fit.effects_ if e.name == DELAY)
-
-    def refit_at(delay_s):
-        if not run.can_fit(f"the transport delay's refit at {delay_s * 1e3:.4g} ms", 1.0, kept_fit.effects_):
-            return math.inf, None
-        run.say(f"transport delay scan: refit at {delay_s * 1e3:.4g} ms")
-        fit = run.stages.refit(run.recording, run.rig, others + [make_effect(DELAY, delay_s=delay_s)], kept_fit)
-        return estimation_cost(fit, run.noise)[0], fit
-
-    s = _Scan(run, d0, estimation_cost(kept_fit, run.noise)[0], kept_fit, refit_at)
-    _walk(s)
     ds, cs, k = s.costs()
     best_fit = s.fits[ds[k]][1]
     scan = [(d, s.fits[d][0], s.fits[d][2]) for d in sorted(s.fits)]
@@ -244,25 +233,6 @@ def scan_with_refits(run, kept_fit):
         best_fit.solver["delay_scan"] = {"delay_s": [d for d, _, _ in scan], "cost": [c for _, c, _ in scan],
                                          "std_s": std}
     return best_fit, scan
-
-
-def scan_on_window(run, effects: list, prefit, fit_on_window, cost):
-    """The transport delay of a set of ``effects`` scanned by pre-fits of the set on the window
-    (``fit_on_window(effects)``, None when one fails; ``cost(pre-fit)`` what is compared), walking as :func:`_walk`
-    says from the set's own delay (its pre-fit ``prefit``); returns ``(delay_s, best pre-fit, scan)``, ``scan`` the ``(delay_s, cost)`` of every
-    pre-fit.  A pre-fit costs seconds where a whole refit costs a minute, and the window is where the set was
-    chosen."""
-    others = [e for e in effects if e.name != DELAY]
-    d0 = next(e.values["delay_s"] for e in effects if e.name == DELAY)
-
-    def prefit_at(delay_s):
-        pre = fit_on_window(others + [make_effect(DELAY, delay_s=delay_s)])
-        return (cost(pre), pre) if pre is not None else (math.inf, None)
-
-    s = _Scan(run, d0, cost(prefit), prefit, prefit_at)
-    _walk(s)
-    ds, cs, k = s.costs()
-    return ds[k], s.fits[ds[k]][1], [(d, s.fits[d][0]) for d in sorted(s.fits)]
 
 
 def _standard_error(delays, costs, best: int, n_residuals: int) -> float | None:

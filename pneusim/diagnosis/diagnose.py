@@ -9,15 +9,14 @@ from __future__ import annotations
 
 from .estimator import Diagnosis
 from .result import DiagnosisResult
-from .rules import MAX_FINDINGS, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, TIME_BUDGET_S, VALIDATION_FRACTION
+from .rules import MAX_FINDINGS, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, VALIDATION_FRACTION
 
 __all__ = ["diagnose", "MIN_SAMPLES"]
 
 
 def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = VALIDATION_FRACTION,
              max_refits: int = MAX_REFITS, max_lookalikes: int = MAX_LOOKALIKES, max_findings: int = MAX_FINDINGS,
-             screen_samples: int | None = None, progress: bool = False,
-             time_budget_s: float = TIME_BUDGET_S) -> DiagnosisResult:
+             screen_samples: int | None = None, progress: bool = False) -> DiagnosisResult:
     """Diagnose what physics the nominal model leaves out of ``recording``.
 
     Parameters
@@ -41,9 +40,6 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
         Estimation samples the screening uses (default :data:`.rules.SCREEN_SAMPLES`).
     progress : bool
         Print one line per stage to standard error.
-    time_budget_s : float
-        CPU seconds the diagnosis may use (:data:`.rules.TIME_BUDGET_S`; ``math.inf``: no limit): a step that
-        does not fit in what is left is not started, and the result's ``status`` says so.
 
     Returns
     -------
@@ -58,4 +54,4 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     """
     return Diagnosis(effects=effects, validation_fraction=validation_fraction, max_refits=max_refits,
                      max_lookalikes=max_lookalikes, max_findings=max_findings, screen_samples=screen_samples,
-                     progress=progress, time_budget_s=time_budget_s).fit(recording, rig)
+                     progress=progress).fit(recording, rig)

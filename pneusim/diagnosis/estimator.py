@@ -12,25 +12,15 @@
    ends within :data:`~.rules.MODEL_SHORT` times the noise (:mod:`.around_nominal`); from the data sheet,
    every candidate pre-fitted on the window where the residual is largest, where it ends farther above
    (:mod:`.from_data_sheet`);
-5. **choose and confirm** -- far above noise, a set of effects chosen together on that window by forward
-   selection of pre-fits (:mod:`.grow`) and fitted whole, together, from the data sheet (:mod:`.joint`); near
-   noise (or where no set passes), the leading candidates, one per look-alike family, then their look-alikes,
-   fitted whole alone (warm from the nominal fit, or from the data sheet); kept only when they pass the keep
-   test (:func:`.rules.passes_test`: an information criterion on the estimation part *and* a validation fit
-   improved by more than noise explains);
+5. **confirm** -- the leading candidates, one per look-alike family, then their look-alikes, fitted whole
+   (warm from the nominal fit, or from the data sheet) and kept only when they pass the keep test
+   (:func:`.rules.passes_test`: an information criterion on the estimation part *and* a validation fit improved
+   by more than noise explains);
 6. **delay scan** (:mod:`.delay`) -- a kept transport delay that leads, or comes close, estimated by refits
    (a delay has no gradient);
-7. **findings on top** (:mod:`.findings`) -- while the model stays above the noise, every candidate not yet
-   found screened on top of the findings' fit, the leaders refitted with them and kept by the keep test;
-8. **drop-one** (:mod:`.joint`) -- each finding refitted out with the others present, removed where the
-   others explain the recording as well without it; the findings ranked by what the fit loses without each;
-   where the model still leaves physics unexplained, a finding that leaves the residual above the noise where
-   it acts is a look-alike of what is missing, and is taken out (:mod:`.lookalike`);
-9. **other** (:mod:`.other`) -- where the model with every finding still leaves a residual well above the
-   noise, ``other``: where, under which conditions, the closest candidates and why they were rejected.
-
-Every costly step asks the time budget first (:mod:`.budget`); a step that does not fit is not started, and
-the result says so (``status``).  ``timing`` gives the wall and CPU seconds of each stage.
+7. **findings** (:mod:`.findings`) -- the kept candidate with the best validation fit first, and a second
+   effect on top of it;
+8. **other** -- with nothing kept, an ``other`` finding where the nominal residual stays well above noise.
 
 Each step is a field of :class:`DiagnosisStages`, and so are the fits, screenings and the keep test the
 steps call; a step reads and writes one :class:`~.run.DiagnosisRun`.  The thresholds are in :mod:`.rules`.
@@ -48,27 +38,22 @@ from typing import Callable
 import numpy as np
 
 from ..errors import FitError, PneusimError
+from ..fit import prefit_recording
 from ..fit.setup import rig_of
 from ..fit.threads import one_blas_thread
 from ..recording import Recording, read_recording
 from ..rig import Rig
 from .around_nominal import confirm_around_nominal, screen_around_nominal
-from .budget import Budget, StageClock
 from .candidates import candidate_list, polished_costs, screen
 from .delay import scan_kept_delay, screened_delays
-from .findings import add_findings, make_findings
+from .findings import add_findings, other_finding
 from .from_data_sheet import confirm_from_data_sheet, mismatch_window, screen_from_data_sheet
-from .grow import grow_on_window
-from .window_fit import window_fit
-from .joint import drop_one, fit_set_from_data_sheet
-from .locate import episodes, locate_mismatch, named_states
-from .lookalike import name_only_what_explains
-from .other import other_finding
+from .locate import locate_mismatch, named_states
 from .refits import estimation_cost, fit_from_data_sheet, fit_nominal, noise_levels, refit
-from .result import CandidateTrial, DiagnosisResult
+from .result import DiagnosisResult
 from .rules import (MAX_FINDINGS, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, MODEL_SHORT, SCREEN_SAMPLES,
-                    TIME_BUDGET_S, VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE, VALIDATION_MOTION_NOISE,
-                    WINDOW_SAMPLES, keep_test_text, noise_floor_points, passes_test, screening_route, validation_room)
+                    VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE, VALIDATION_MOTION_NOISE, WINDOW_SAMPLES,
+                    keep_test_text, noise_floor_points, passes_test, screening_route, validation_room)
 from .run import DiagnosisRun, NominalBaseline
 from .signatures import compute_signatures
 
@@ -87,21 +72,15 @@ class DiagnosisStages:
     signatures : ``(recording, rig, states, velocity) -> dict`` (:func:`.signatures.compute_signatures`)
     screen_around_nominal, confirm_around_nominal : near noise (:mod:`.around_nominal`)
     screen_from_data_sheet, confirm_from_data_sheet : far above noise (:mod:`.from_data_sheet`)
-    grow : ``(run, ranked, variants, start) -> WindowSet`` (:func:`.grow.grow_on_window`)
-    window_fit : ``(run, effects, start, samples, evaluations, warm=, start_values=) -> WindowFit``, a pre-fit on
-        the window continued from another (:func:`.window_fit.window_fit`)
-    joint : ``(run, window set, window nominal rms) -> (members, fit)`` (:func:`.joint.fit_set_from_data_sheet`)
     delay_scan : ``(run) -> None`` (:func:`.delay.scan_kept_delay`)
-    findings : ``(run, members, fit) -> (members, final fit)`` (:func:`.findings.add_findings`)
-    drop_one : ``(run, final fit, {effect: parameters added}) -> (final fit, Dropped)`` (:func:`.joint.drop_one`)
-    lookalikes : ``(run, final fit, importance) -> (final fit, taken out)``
-        (:func:`.lookalike.name_only_what_explains`)
-    other : ``(run, final fit, duration_s) -> Finding or None`` (:func:`.other.other_finding`)
+    findings : ``(run, kept) -> (findings, final fit)`` (:func:`.findings.add_findings`)
+    other : ``(nominal, noise, windows) -> Finding or None`` (:func:`.findings.other_finding`)
 
     What the steps call:
 
     screen : ``(fit, recording, candidate or None, noise, samples) -> dict`` (:func:`.candidates.screen`)
     polished_costs : ``(fit, recording, noise, samples) -> {evaluations: cost}`` (:func:`.candidates.polished_costs`)
+    prefit : :func:`pneusim.fit.prefit_recording`, the screening from the data sheet's pre-fit
     refit : ``(recording, rig, effects, warm, start_values=None) -> FitResult`` (:func:`.refits.refit`)
     fit : ``(recording, rig, effects, validation_fraction, start_values) -> FitResult``, a whole fit from the
         data sheet (:func:`.refits.fit_from_data_sheet`)
@@ -115,16 +94,12 @@ class DiagnosisStages:
     confirm_around_nominal: Callable = confirm_around_nominal
     screen_from_data_sheet: Callable = screen_from_data_sheet
     confirm_from_data_sheet: Callable = confirm_from_data_sheet
-    grow: Callable = grow_on_window
-    window_fit: Callable = window_fit
-    joint: Callable = fit_set_from_data_sheet
     delay_scan: Callable = scan_kept_delay
     findings: Callable = add_findings
-    drop_one: Callable = drop_one
-    lookalikes: Callable = name_only_what_explains
     other: Callable = other_finding
     screen: Callable = screen
     polished_costs: Callable = polished_costs
+    prefit: Callable = prefit_recording
     refit: Callable = refit
     fit: Callable = fit_from_data_sheet
     keep_test: Callable = passes_test
@@ -182,12 +157,11 @@ class Diagnosis:
 
     def __init__(self, *, effects=None, validation_fraction: float = VALIDATION_FRACTION,
                  max_refits: int = MAX_REFITS, max_lookalikes: int = MAX_LOOKALIKES, max_findings: int = MAX_FINDINGS,
-                 screen_samples: int | None = None, progress: bool = False, time_budget_s: float = TIME_BUDGET_S,
+                 screen_samples: int | None = None, progress: bool = False,
                  stages: DiagnosisStages = DiagnosisStages()):
         self.effects, self.validation_fraction = effects, validation_fraction
         self.max_refits, self.max_lookalikes, self.max_findings = max_refits, max_lookalikes, max_findings
         self.screen_samples, self.progress, self.stages = screen_samples, progress, stages
-        self.time_budget_s = time_budget_s
 
     def _say(self, name: str, message: str) -> None:
         if self.progress:
@@ -198,99 +172,49 @@ class Diagnosis:
         """Diagnose ``recording`` (a :class:`~pneusim.recording.Recording` or a path) on ``rig`` (default: the
         recording's ``rig`` metadata); raises :class:`~pneusim.errors.PneusimError` like
         :func:`~pneusim.diagnosis.diagnose`."""
-        started, budget, clock = time.perf_counter(), Budget(self.time_budget_s), StageClock()
+        started = time.perf_counter()
         recording, rig = _load(recording, rig)
         name = _name(recording)
         candidate_list(rig, recording.sample_time_s, self.effects)   # an unknown effect is refused before any work
         _check_input(recording, rig, self.validation_fraction)
-        with clock.stage("nominal_fit"):
-            nominal = self._nominal_fit(recording, rig, name)                                 # 1. nominal fit
+        nominal = self._nominal_fit(recording, rig, name)                                     # 1. nominal fit
+        t_nominal = time.perf_counter() - started
         noise = noise_levels(recording, nominal.rig)
-        with clock.stage("locate"):
-            states = named_states(nominal)
-            windows, _ = self.stages.locate(recording, nominal.rig, states, noise)            # 2. locate
-            signatures = self.stages.signatures(recording, nominal.rig, states, states["velocity_m_per_s"])  # 3.
+        states = named_states(nominal)
+        windows, _ = self.stages.locate(recording, nominal.rig, states, noise)                # 2. locate
+        signatures = self.stages.signatures(recording, nominal.rig, states, states["velocity_m_per_s"])  # 3.
         candidates = candidate_list(rig, recording.sample_time_s, self.effects,
                                     screened_delays(signatures, recording.sample_time_s))
         self._say(name, f"nominal validation fit {nominal.fit_percent:.2f} %, {len(windows)} mismatch window(s); "
                         f"screening {len(candidates)} candidates")
-        run = self._run(recording, nominal, noise, name, budget, clock)
-        run.candidates, run.fit_cost_s = candidates, clock.cpu["nominal_fit"]
-        members, final = self._first_findings(run, signatures)                               # 4.-6.
-        findings = self._more_findings(run, members, final) if members else []               # 7.-8.
-        final = run.final if members else nominal
-        with clock.stage("other"):
-            other = self.stages.other(run, final, float(recording.time_s[-1] - recording.time_s[0]))   # 9.
-        findings += [other] if other is not None else []
-        result = self._result(run, name, windows, findings, final, signatures, started)
-        self._say(name, f"findings {', '.join(result.effects) or 'none'}; final fit {final.fit_percent:.2f} % "
-                        f"({result.seconds:.0f} s, {result.status})")
-        return result
-
-    def _first_findings(self, run: DiagnosisRun, signatures: dict) -> tuple[list, object]:
-        """4.-6. Screen, choose and confirm: ``(members, fit)`` of the first findings, or ``([], nominal)``."""
-        nominal = run.baseline.fit
-        run.remember(nominal)
-        with run.clock.stage("screening"):
-            route, ranked, variants, measure = self._screen(run, run.candidates, signatures)
-        for c in run.candidates:   # every effect has a trial, screened or not
-            run.trials.setdefault(c.name, CandidateTrial(c.name, -math.inf, "", status="not screened"))
-        run.ranked = ranked
-        if route == "none":
-            return [], nominal
-        if route == "from the data sheet":
-            base, start = measure
-            with run.clock.stage("window_set"):
-                window = self.stages.grow(run, ranked, variants, start)
-            if window.members:
-                members, fit = self.stages.joint(run, window, base.normalised_residual)
-                if members:
-                    run.remember(fit)
-                    return members, fit
-            with run.clock.stage("single_fits"):
-                self.stages.confirm_from_data_sheet(run, ranked, variants, base.normalised_residual)
-        else:
-            with run.clock.stage("single_fits"):
-                self.stages.confirm_around_nominal(run, ranked, variants, measure)
-        with run.clock.stage("delay_scan"):
-            self.stages.delay_scan(run)
-        for fit, _ in run.refits.values():
-            run.remember(fit)
+        run = self._run(recording, nominal, noise, name)
+        t_started = time.perf_counter()
+        route, ranked, variants, measure = self._screen(run, candidates, signatures)         # 4. screen
+        t_screen = time.perf_counter() - t_started
+        self._confirm(run, route, ranked, variants, measure)                                  # 5. confirm
+        self.stages.delay_scan(run)                                                           # 6. delay scan
         kept = run.kept_by_fit()
-        return ([kept[0]], run.refits[kept[0]][0]) if kept else ([], nominal)
-
-    def _more_findings(self, run: DiagnosisRun, members: list, final) -> list:
-        """7.-8. Findings on top while above noise, then drop-one; ``run.final`` is the fit with them all."""
-        members, final = self.stages.findings(run, members, final)
-        n_added = {c.name: c.n_added for c in run.candidates}
-        final, dropped = self.stages.drop_one(run, final, n_added)
-        run.fits_without = {k: v for k, v in dropped.without.items() if k in [e.name for e in final.effects_]}
-        with run.clock.stage("lookalikes"):
-            final, _ = self.stages.lookalikes(run, final, dropped.importance)
-        run.final = final
-        if len(final.effects_) == 1:
-            run.fits_without = {final.effects_[0].name: run.baseline.fit}
-        for e in final.effects_:
-            run.trials[e.name].kept = True
-        return make_findings(run, final, dropped.importance) if final.effects_ else []
-
-    def _result(self, run, name, windows, findings, final, signatures, started) -> DiagnosisResult:
-        """The result of ``run``: findings, fits, candidates, the keep test in words, status and timing."""
-        basis, recording, nominal = run.baseline, run.recording, run.baseline.fit
-        duration = float(recording.time_s[-1] - recording.time_s[0])
-        order = list(run.ranked) + [k for k in run.trials if k not in run.ranked]
-        timing = {"total_s": time.perf_counter() - started, "cpu_s": run.budget.used(), **run.clock.timing()}
-        return DiagnosisResult(
+        findings, final = self.stages.findings(run, kept) if kept else ([], nominal)          # 7. findings
+        if not findings:                                                                      # 8. other
+            other = self.stages.other(nominal, noise, windows)
+            findings += [other] if other is not None else []
+        basis = run.baseline
+        result = DiagnosisResult(
             recording=name, rig=nominal.rig.name,
             validation={"t_start_s": float(recording.time_s[nominal.n_estimation]),
                         "t_end_s": float(recording.time_s[-1])},
             nominal={"fit_percent": basis.fit0, "parameters": nominal.estimates},
-            mismatch=episodes(windows, duration), findings=findings, final_fit_percent=final.fit_percent,
-            candidates=[run.trials[k] for k in order],
+            mismatch=windows, findings=findings, final_fit_percent=final.fit_percent,
+            candidates=[run.trials[k] for k in ranked],
             test=keep_test_text(basis.floor, basis.fit0, validation_room(basis.fit0, basis.floor)),
-            seconds=time.perf_counter() - started, timing=timing, status=run.budget.status,
-            nominal_fit=nominal, final_fit=final, signatures=signatures, windows=windows,
-            fits={k: v[0] for k, v in run.refits.items()}, fits_without=dict(run.fits_without))
+            seconds=time.perf_counter() - started,
+            timing={"nominal_fit_s": t_nominal, "screening_s": t_screen,
+                    "refits_s": time.perf_counter() - started - t_nominal - t_screen},
+            nominal_fit=nominal, final_fit=final, signatures=signatures,
+            fits={k: v[0] for k, v in run.refits.items()})
+        self._say(name, f"findings {', '.join(result.effects) or 'none'}; final fit {final.fit_percent:.2f} % "
+                        f"({result.seconds:.0f} s)")
+        return result
 
     def _nominal_fit(self, recording, rig, name: str):
         """1. The nominal fit (``stages.nominal_fit``); a recording it cannot start on is refused in one sentence."""
@@ -300,7 +224,7 @@ class Diagnosis:
         except PneusimError as exc:
             raise FitError(f"{name}: the nominal fit failed on this recording: {exc}") from None
 
-    def _run(self, recording, nominal, noise: dict, name: str, budget: Budget, clock: StageClock) -> DiagnosisRun:
+    def _run(self, recording, nominal, noise: dict, name: str) -> DiagnosisRun:
         """The run every later step reads and writes, with the nominal baseline the keep test compares with."""
         cost0, n_res = estimation_cost(nominal, noise)
         floor = noise_floor_points(recording, nominal.n_estimation, noise)
@@ -310,7 +234,7 @@ class Diagnosis:
         return DiagnosisRun(recording, nominal.rig, basis, self.stages, max_refits=self.max_refits,
                             max_lookalikes=self.max_lookalikes, max_findings=self.max_findings,
                             screen_samples=self.screen_samples, n_screen=n_screen,
-                            say=lambda message: self._say(name, message), budget=budget, clock=clock)
+                            say=lambda message: self._say(name, message))
 
     def _screen(self, run: DiagnosisRun, candidates: list, signatures: dict):
         """4. Screen the candidates by the route the nominal fit calls for (:func:`.rules.screening_route`);
@@ -332,7 +256,14 @@ class Diagnosis:
             run.trials, variants, ranked, window = self.stages.screen_from_data_sheet(run, candidates, signatures,
                                                                                       start)
             run.say("screening from the data sheet ranks " + _ranking(ranked, variants))
-            return route, ranked, variants, (window, start)
+            return route, ranked, variants, window.normalised_residual
         run.trials, variants, ranked, base_cost = self.stages.screen_around_nominal(run, candidates, signatures)
         run.say("screening ranks " + _ranking(ranked, variants))
         return route, ranked, variants, base_cost
+
+    def _confirm(self, run: DiagnosisRun, route: str, ranked: list, variants: dict, measure) -> None:
+        """5. Confirm the leading candidates by whole fits, as the screening's route calls for."""
+        if route == "from the data sheet":
+            self.stages.confirm_from_data_sheet(run, ranked, variants, measure)
+        elif route == "around the nominal fit":
+            self.stages.confirm_around_nominal(run, ranked, variants, measure)

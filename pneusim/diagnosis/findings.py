@@ -1,15 +1,6 @@
-"""The findings of a diagnosis: effects added on top of the findings so far while the model stays above the noise
-(:func:`add_findings`), and each finding as the user reads it, with its parameters as a data sheet gives them
-(:func:`make_findings`).
-
-Why on top, by what a candidate explains there: once some findings are in, what another effect must explain is
-their residual; a candidate that fitted well alone often explained the same as the first, while a true second
-effect that fitted badly alone was never tried (``docs/decisions/0032``).  Every candidate of the vocabulary not
-yet found is screened on top of the findings' fit (a few trust-region steps from its neutral start, as in the
-first screening); the one that explains most is refitted with the findings, and kept by the keep test against
-them; where the findings' fit still ends far above the noise and the warm refit fails, the findings and the
-candidate are fitted together from the data sheet instead.  Whether each finding is needed with the others
-present is the drop-one test's to say (:mod:`.joint`).
+"""The findings of a diagnosis: the kept candidate with the best validation fit first, then a second effect
+on top of it (:func:`add_findings`), each with its parameters as a user compares them with a data sheet; or,
+with nothing kept, the ``other`` finding (:func:`other_finding`).
 """
 
 from __future__ import annotations
@@ -20,78 +11,78 @@ import time
 from ..model.effects import EFFECTS
 from .from_data_sheet import data_sheet_start
 from .refits import effect_at_screened, effect_parameters, estimation_cost
-from .result import Finding
-from .rules import EXPLAINED, MIN_EXPLAINED, MODEL_SHORT, ON_TOP_REFITS, bic_penalty, is_solver_failure
+from .result import CandidateTrial, Finding
+from .rules import MIN_EXPLAINED, MODEL_SHORT, ON_TOP_REFITS, OTHER_RESIDUAL, bic_penalty, is_solver_failure
 
-__all__ = ["add_findings", "make_findings", "residual_rms", "ON_TOP_REFITS"]
-
-
-def residual_rms(run, fit) -> float:
-    """A fit's estimation residual rms in noise units, continuity defects counted (:func:`.refits.estimation_cost`)."""
-    cost, _ = estimation_cost(fit, run.noise)
-    return math.sqrt(cost / max(run.baseline.n_residuals, 1))
+__all__ = ["add_findings", "other_finding", "ON_TOP_REFITS"]
 
 
-def _pool(run, members: list) -> dict:
-    """The candidates not yet found, by effect: ``{effect: [its variants]}``."""
-    pool: dict = {}
-    for c in run.candidates:
-        if c.name not in members:
-            pool.setdefault(c.name, []).append(c)
-    return pool
+def add_findings(run, kept: list) -> tuple[list, object]:
+    """The first finding (the kept candidate with the best validation fit, ``kept[0]``) and a second effect on
+    top of it; returns ``(findings, final fit)``.
 
+    The other kept candidates, and those of ``run.second_only`` (not fitted alone), are all screened on top of
+    the first finding's fit; the one that explains most of the residual there is refitted together with it
+    while it explains at least :data:`~.rules.MIN_EXPLAINED` of it (at most :data:`~.rules.ON_TOP_REFITS`
+    refits, the rest screened again whenever the findings' fit changes), and kept when it passes the keep test
+    against the findings before it (and against those refitted alone: :func:`_second_effect_needed`).
+    ``run.trials`` are updated in place.
 
-def add_findings(run, members: list, final) -> tuple[list, object]:
-    """Effects added on top of ``members`` (their fit ``final``) while the model stays above the noise (its
-    estimation residual above :data:`~.rules.EXPLAINED` times it), at most ``run.max_findings`` in all; returns
-    ``(members, final)``.
-
-    Each round screens every candidate not yet found on top of ``final`` (``run.candidates``, each effect by its
-    best variant) and refits those that explain at least :data:`~.rules.MIN_EXPLAINED` of the findings' cost
-    there, most first, at most :data:`~.rules.ON_TOP_REFITS` a round; the first kept joins.  ``run.trials`` say
-    what each was found to do."""
-    members = list(members)
-    while len(members) < max(1, run.max_findings) and residual_rms(run, final) > EXPLAINED:
-        pool = _pool(run, members)
-        if not pool or not run.can_fit("the screening on top of the findings", 0.3):
+    Why by the screening on top, not by the fit alone: once the first finding is in, what a second effect
+    must explain is the first finding's residual, and a candidate that fitted well alone often explained
+    the same as the first, while a true second effect that fitted badly alone was never tried
+    (``docs/decisions/0032``)."""
+    first = kept[0]
+    final = run.refits[first][0]
+    findings = [_finding(first, final, run.baseline.fit0, run.trials[first])]
+    pool = {eff: run.refits[eff][1] for eff in kept[1:]}
+    pool.update(run.second_only)
+    scores: dict = {}   # {effect: (gain, score)} on top of the current findings, against base_top
+    tried_on_top = 0
+    while pool and len(findings) < run.max_findings:
+        if tried_on_top >= ON_TOP_REFITS:
+            for rest in pool:
+                run.trials[rest].status += (f"; not refitted on top of {first} (the {ON_TOP_REFITS} that explained "
+                                            "most there were)")
+                run.trials[rest].kept = False
             break
-        with run.clock.stage("on_top"):
+        if not scores:
             base_top, scores = _screen_on_top(run, final, pool)
-        order = sorted(scores, key=lambda k: -scores[k][1])
-        order = [k for k in order if not math.isfinite(scores[k][0]) or scores[k][1] > MIN_EXPLAINED * base_top]
-        for rest in set(scores) - set(order):
-            run.trials[rest].status += (f"; on top of {', '.join(members)}: screening explains "
-                                        f"{scores[rest][0]:.0f} of {base_top:.0f} (at most {MIN_EXPLAINED:g} of it)")
-        for rest in order[ON_TOP_REFITS:]:
-            run.trials[rest].status += (f"; not refitted on top of {', '.join(members)} (the {ON_TOP_REFITS} that "
-                                        "explained most there were)")
-        added = None
-        run.remember(final)
-        for eff in order[:ON_TOP_REFITS]:
-            if not run.can_fit(f"the refit of {eff} on top of {', '.join(members)}", 1.0,
-                               list(final.effects_) + [scores[eff][2].effect]):
-                break
-            gain, _, c, screening = scores[eff]
-            text = f" (screening explains {gain:.0f} of {base_top:.0f} there)" if math.isfinite(gain) else ""
-            with run.clock.stage("on_top"):
-                tried = _refit_on_top(run, members, final, eff, effect_at_screened(c, screening), c, text)
-            if tried is not None and tried[0]:
-                added, final = eff, tried[1]
-                break
-        if added is None:
+        eff = max(pool, key=lambda k: scores[k][1])
+        gain, score_top = scores[eff]
+        if math.isfinite(gain) and not score_top > MIN_EXPLAINED * base_top:
+            for rest in pool:
+                run.trials[rest].status += (f"; on top of {first}: screening explains {scores[rest][0]:.0f} of "
+                                            f"{base_top:.0f} (score {scores[rest][1]:.0f} <= {MIN_EXPLAINED:g} of "
+                                            "it): not refitted")
+                run.trials[rest].kept = False
             break
-        run.trials[added].kept = True
-        members.append(added)
-    return members, final
+        c = pool.pop(eff)
+        tried_on_top += 1
+        screened = f" (screening explains {gain:.0f} of {base_top:.0f} there)" if math.isfinite(gain) else ""
+        tried = _refit_on_top(run, first, final, eff, c, screened)
+        if tried is None:
+            continue
+        ok, fit2, c_prev, c2 = tried
+        if ok:
+            previous = final
+            ok, final = _second_effect_needed(run, final, c_prev, fit2, c2, eff, c.n_added, findings)
+            if final is not previous:
+                scores = {}   # the rest are screened again on top of the better optimum
+        if ok:
+            run.trials[eff].kept = True
+            findings.append(_finding(eff, fit2, final.fit_percent, run.trials[eff]))
+            final = fit2
+    return findings, final
 
 
 def _screen_on_top(run, final, pool: dict) -> tuple[float, dict]:
-    """What each effect of ``pool`` (``{effect: [variants]}``) still explains once the findings (``final``) are
-    in: ``(base_top, {effect: (gain, score, best variant, its screening)})``, ``base_top`` the findings' own cost on the
-    screening window.
+    """What each candidate of ``pool`` still explains once the findings (``final``) are in: ``(base_top,
+    {effect: (gain, score)})``, ``base_top`` the findings' own cost on the screening window.
 
-    From the findings' own cost, not from where the same steps take it without a candidate (as around the
-    nominal optimum): a fit far from noise gains much from those steps alone, and in a few steps a true
+    A refit on top costs as much as the first; look-alikes of the first usually explain nothing more.  From
+    the findings' own cost, not from where the same steps take it without a candidate (as around the nominal
+    optimum): a first finding far from noise gains much from those steps alone, and in a few steps a true
     second effect may not get past them.  Each from the effect's neutral start, as in the first screening:
     the trust region then only goes downhill from the findings' optimum.  Where the findings cannot be
     screened, the refits decide in the order given; a candidate that cannot be screened gets an infinite gain
@@ -103,29 +94,25 @@ def _screen_on_top(run, final, pool: dict) -> tuple[float, dict]:
             raise
         base_top = math.nan
     scores = {}
-    for eff, variants in pool.items():
-        for c in variants:
-            gain, screened = math.inf, {}
-            if math.isfinite(base_top):
-                try:
-                    screened = run.stages.screen(final, run.recording, c, run.noise, run.screen_samples)
-                    gain = base_top - screened["cost"]
-                except Exception as exc:  # noqa: BLE001
-                    if not is_solver_failure(exc):
-                        raise
-            score = gain - bic_penalty(c.n_added, max(run.n_screen, 2))
-            if eff not in scores or score > scores[eff][1]:
-                scores[eff] = (gain, score, c, screened)
+    for eff, c in pool.items():
+        gain = math.inf
+        if math.isfinite(base_top):
+            try:
+                gain = base_top - run.stages.screen(final, run.recording, c, run.noise, run.screen_samples)["cost"]
+            except Exception as exc:  # noqa: BLE001
+                if not is_solver_failure(exc):
+                    raise
+        scores[eff] = (gain, gain - bic_penalty(c.n_added, max(run.n_screen, 2)))
     return base_top, scores
 
 
-def _refit_on_top(run, members: list, final, eff: str, effect, c, screened: str):
-    """Refit the findings so far (``final``) with ``eff`` on top (``effect``, at its screened values; ``c`` its
-    candidate), warm from them, and apply the keep test
+def _refit_on_top(run, first: str, final, eff: str, c, screened: str):
+    """Refit the findings so far (``final``) with ``eff`` on top, warm from them, and apply the keep test
     against them; where that fails and the findings' fit ends more than :data:`~.rules.MODEL_SHORT` times above
-    noise, the findings and the candidate fitted from the data sheet are tested instead.  Returns ``(kept,
-    fit)``, or None when the refit failed (the trial says why)."""
-    trial, basis, first = run.trials[eff], run.baseline, ", ".join(members)
+    noise, both fitted from the data sheet are tested instead.  Returns ``(kept, fit, cost before, cost
+    after)``, or None when the refit failed (the trial says why)."""
+    trial, basis = run.trials[eff], run.baseline
+    effect = effect_at_screened(c, {"parameters": trial.parameters})
     run.say(f"refit with {first} and {eff}")
     trial.kept, trial.refitted = False, True
     started = time.perf_counter()
@@ -143,18 +130,14 @@ def _refit_on_top(run, members: list, final, eff: str, effect, c, screened: str)
     ok, _, reason = run.stages.keep_test(c_prev, c2, basis.n_residuals, c.n_added, final.fit_percent,
                                          fit2.fit_percent, basis.floor)
     trial.status += f"; on top of {first}{screened}: {reason}"
-    if (not ok and math.sqrt(c_prev / max(basis.n_residuals, 1)) > MODEL_SHORT
-            and run.can_fit(f"the fit of {first} and {eff} from the data sheet", 1.5,
-                            list(final.effects_) + [effect])):
+    if not ok and math.sqrt(c_prev / max(basis.n_residuals, 1)) > MODEL_SHORT:
         both = _on_top_from_data_sheet(run, final, c, trial)
         if both is not None:
             fit2, c2 = both
             ok, _, reason = run.stages.keep_test(c_prev, c2, basis.n_residuals, c.n_added, final.fit_percent,
                                                  fit2.fit_percent, basis.floor)
             trial.status += f"; both fitted from the data sheet: {reason}"
-    trial.fit_percent, trial.improvement_points = fit2.fit_percent, fit2.fit_percent - final.fit_percent
-    trial.parameters, _ = effect_parameters(fit2, eff)
-    return ok, fit2
+    return ok, fit2, c_prev, c2
 
 
 def _on_top_from_data_sheet(run, final, c, trial):
@@ -181,25 +164,77 @@ def _on_top_from_data_sheet(run, final, c, trial):
     return fit2, estimation_cost(fit2, run.noise)[0]
 
 
-def make_findings(run, final, importance: dict) -> list[Finding]:
-    """The findings of ``final`` (a fit with the kept effects), most important first: ``importance[effect]`` is
-    the validation fit the model loses without it, the others present (:func:`.joint.drop_one`); a lone
-    finding's is what it adds to the nominal fit.  Each finding's ``fit_percent`` is the validation fit with all
-    of them, its ``improvement_points`` its importance."""
-    names = [e.name for e in final.effects_]
-    if len(names) == 1:
-        importance = {names[0]: final.fit_percent - run.baseline.fit0}
-    elif not importance:   # drop-one did not run (the time budget): what the set adds to the nominal fit
-        importance = {k: final.fit_percent - run.baseline.fit0 for k in names}
-    names.sort(key=lambda k: -importance.get(k, -math.inf))
-    out = []
-    for eff in names:
-        values, errors = effect_parameters(final, eff)
-        trial = run.trials[eff]
-        out.append(Finding(effect=eff, evidence=trial.evidence + f"; refit: {trial.status}",
-                           parameters=_derived(eff, values, final), fit_percent=final.fit_percent,
-                           improvement_points=importance.get(eff, math.nan), standard_errors=errors))
-    return out
+def _second_effect_needed(run, final, cost_final: float, fit2, cost2: float, eff: str, n_added: int,
+                          findings: list) -> tuple:
+    """Whether ``eff``, kept on top of the findings so far (``final``, estimation cost ``cost_final``;
+    refitted with ``eff`` as ``fit2``, cost ``cost2``), is needed, or whether the refit on top only found a
+    better optimum of the findings so far: those alone are refitted warm from ``fit2``, and where that
+    refit ends below ``final`` on the estimation part, ``eff`` must pass the keep test against it too.
+    Returns ``(needed, final)``, ``final`` replaced by that refit when ``eff`` is not needed (the last
+    finding then rebuilt on it).
+
+    Why: a refit on top runs the optimiser on from the first finding's optimum with one more parameter, and
+    where that first fit had stopped short, the gain is the optimiser's.  Where the refit alone ends above
+    ``final`` on the estimation part (what the fit minimises), ``final`` had not stopped short, and the test
+    ``eff`` passed against it stands: tested against that refit instead, a true second effect can fall just
+    short of the threshold (``docs/decisions/0032``)."""
+    trials, noise, basis = run.trials, run.noise, run.baseline
+    run.say(f"{eff} kept on top: the findings before it refitted alone from there")
+    try:
+        alone = run.stages.refit(run.recording, run.rig, list(final.effects_), fit2)
+        cost_alone, _ = estimation_cost(alone, noise)
+    except Exception as exc:  # noqa: BLE001 - the refit on top stands
+        if not is_solver_failure(exc):
+            raise
+        return True, final
+    if not cost_alone < cost_final:
+        trials[eff].status += (f"; the findings before it refitted alone from that optimum end above their own fit "
+                               f"on the estimation part ({cost_alone:.0f} >= {cost_final:.0f}; validation "
+                               f"{alone.fit_percent:.2f} %): they had not stopped short, the test above stands")
+        return True, final
+    needed, _, reason = run.stages.keep_test(cost_alone, cost2, basis.n_residuals, n_added, alone.fit_percent,
+                                             fit2.fit_percent, basis.floor)
+    trials[eff].status += (f"; against the findings before it refitted alone from that optimum "
+                           f"({alone.fit_percent:.2f} %): {reason}")
+    if needed:
+        return True, final
+    last = findings[-1]
+    trials[last.effect].status += (f"; refitted from the optimum found with {eff} on top: validation "
+                                   f"{final.fit_percent:.2f} -> {alone.fit_percent:.2f} %")
+    findings[-1] = _finding(last.effect, alone, last.fit_percent - last.improvement_points, trials[last.effect])
+    return False, alone
+
+
+def other_finding(nominal, noise: dict, windows) -> Finding | None:
+    """The ``other`` finding where nothing of the vocabulary was kept: the nominal fit's residuals on its
+    estimation part above :data:`~.rules.OTHER_RESIDUAL` times the sensor noise, in mismatch windows; else None.
+
+    The residuals alone, without the continuity defects a fit that ended in the penalty form left open (those
+    count in the keep test's costs, see :func:`.refits.estimation_cost`): the defects' weight is the penalty's,
+    not a multiple of the noise, and they say the optimiser stopped short, not that physics is missing; a
+    control whose residuals end near the noise would otherwise be reported as ``other``
+    (``docs/decisions/0031``)."""
+    cost, count = estimation_cost(nominal, noise, defects=False)
+    ratio = math.sqrt(cost / max(count, 1))
+    if not (ratio > OTHER_RESIDUAL and windows):
+        return None
+    conditions = {}
+    for w in windows:
+        conditions[w.condition] = conditions.get(w.condition, 0.0) + (w.t_end_s - w.t_start_s)
+    where = max(conditions, key=conditions.get)
+    return Finding(
+        effect="other",
+        evidence=(f"the fitted nominal model leaves a residual of {ratio:.1f} times the sensor noise on the "
+                  f"estimation part, in {len(windows)} window(s), longest in '{where}'; no vocabulary effect "
+                  "passed the test (see the candidates)"),
+        parameters={}, fit_percent=nominal.fit_percent, improvement_points=0.0)
+
+
+def _finding(eff: str, fit, fit_before: float, trial: CandidateTrial) -> Finding:
+    values, errors = effect_parameters(fit, eff)
+    return Finding(effect=eff, evidence=trial.evidence + f"; refit: {trial.status}",
+                   parameters=_derived(eff, values, fit), fit_percent=fit.fit_percent,
+                   improvement_points=fit.fit_percent - fit_before, standard_errors=errors)
 
 
 def _derived(name: str, values: dict, fit) -> dict:

@@ -6,16 +6,14 @@ static friction several times the rig's), and screening around that optimum misr
 screen near the bottom, and whole fits of every candidate from the data sheet cost many nominal fits
 (``docs/decisions/0028``).
 
-Here every candidate gets the fit's pre-fit alone (:func:`.window_fit.window_fit`): from the data
+Here every candidate gets the fit's pre-fit alone (:func:`pneusim.fit.prefit_recording`): from the data
 sheet, with the effect switched on and its parameters free beside the nominal ones, on the
 :data:`~.rules.WINDOW_SAMPLES` samples of the estimation part where the nominal model's residual is largest
 (:func:`mismatch_window`), beside the nominal model's pre-fit on the same window.  The BIC gain on the window,
-``N ln(C_nominal / C_effect) - k ln N``, ``C`` what each pre-fit minimised (residuals and continuity defects,
-``docs/decisions/0034``), ranks them (:func:`screen_from_data_sheet`).  A set of them is then chosen together on
-the window (:mod:`.grow`) and fitted whole (:mod:`.joint`); where no set passes the keep test, the leaders are
-fitted whole alone from their pre-fit values (:func:`confirm_from_data_sheet`; the nominal parameters from the
-data sheet where a pre-fit explained little of the window, :data:`~.rules.PREFIT_START`) and kept by the same
-test as any refit.
+``N ln(C_nominal / C_effect) - k ln N``, ranks them (:func:`screen_from_data_sheet`).  The leaders are then
+fitted whole from their pre-fit values (:func:`confirm_from_data_sheet`; the nominal parameters from the data
+sheet where a pre-fit explained little of the window, :data:`~.rules.PREFIT_START`) and kept by the same test
+as any refit.
 """
 
 from __future__ import annotations
@@ -28,9 +26,8 @@ import numpy as np
 from .candidates import family_of
 from .refits import effect_at_prefit, estimation_cost, judge_refit, retry_from_neutral
 from .result import CandidateTrial
-from .rules import (AT_NOISE_ON_WINDOW, DEFER_WINDOW, EXPLAINED, MAX_FITS, MODEL_SHORT, PREFIT_DEFECT_WEIGHT,
-                    PREFIT_EVALUATIONS, PREFIT_START, RIVAL_WINDOW, WINDOW_SAMPLES, WINDOW_SHOWS_MISMATCH, bic_penalty,
-                    is_solver_failure)
+from .rules import (AT_NOISE_ON_WINDOW, DEFER_WINDOW, EXPLAINED, MAX_FITS, MODEL_SHORT, PREFIT_EVALUATIONS,
+                    PREFIT_START, RIVAL_WINDOW, WINDOW_SAMPLES, WINDOW_SHOWS_MISMATCH, bic_penalty, is_solver_failure)
 from .signatures import evidence_text
 
 __all__ = ["mismatch_window", "one_start_each", "data_sheet_start", "screen_from_data_sheet",
@@ -81,25 +78,8 @@ def mismatch_window(nominal, recording, noise: dict, samples: int) -> int:
     return int(np.argmax(cumulative[samples:] - cumulative[:-samples]))
 
 
-def _prefit(run, effects: list, start: int, start_values):
-    """A pre-fit on the window from sample ``start`` (``run.stages.window_fit``): :data:`~.rules.WINDOW_SAMPLES`
-    samples, the direct route only, at most :data:`~.rules.PREFIT_EVALUATIONS` trust-region evaluations."""
-    return run.stages.window_fit(run, effects, start, WINDOW_SAMPLES, PREFIT_EVALUATIONS, start_values=start_values)
-
-
-def _objective(pre) -> float:
-    """What a pre-fit minimised: its residuals and its continuity defects weighted as the pre-fit weighs them.
-
-    Why the defects: a pre-fit closes the segments only approximately, and an effect with unmeasured states of
-    its own (chamber temperatures, a spool, a supply volume) lowers the residuals by opening its states'
-    defects segment by segment; ranked by the residuals alone, heat transfer led every slow pneumatic effect
-    and the dead band on position-only recordings (``docs/decisions/0034``)."""
-    return pre.objective(PREFIT_DEFECT_WEIGHT)
-
-
 def screen_from_data_sheet(run, candidates: list, signatures: dict, start: int = 0):
-    """Pre-fit every candidate from the data sheet on the window from sample ``start`` (``run.stages.window_fit``)
-    and rank them by the BIC gain of the pre-fits' objective (residuals and continuity defects, :func:`_objective`);
+    """Pre-fit every candidate from the data sheet on the window from sample ``start`` (``run.stages.prefit``);
     returns ``(trials, variants, ranked, base)``.
 
     ``variants``: ``{effect: (score, candidate, pre-fit or None)}`` for the best-scoring variant of each
@@ -108,21 +88,21 @@ def screen_from_data_sheet(run, candidates: list, signatures: dict, start: int =
     score of minus infinity.  Once a candidate explains the window down to :data:`~.rules.AT_NOISE_ON_WINDOW`
     times the noise (where the window shows the mismatch), only its look-alikes are pre-fitted after it: no
     other physics can explain more there; the others are not screened (and not in ``variants``).  ``base``:
-    the nominal model's pre-fit on the window (:class:`~pneusim.fit.PrefitResult`).  ``run.window_items`` gets
-    every pre-fit, ``[(score, candidate, pre-fit or None)]``."""
+    the nominal model's pre-fit on the window (:class:`~pneusim.fit.PrefitResult`)."""
     recording, rig = run.recording, run.rig
-    base = _prefit(run, [], start, None)
+    options = {"samples": WINDOW_SAMPLES, "validation_fraction": run.baseline.validation_fraction,
+               "second_route": False, "max_evaluations": PREFIT_EVALUATIONS, "start": start}
+    base = run.stages.prefit(recording, rig, [], **options)
     t0 = float(recording.time_s[start])
     window_shows_it = base.normalised_residual > WINDOW_SHOWS_MISMATCH * AT_NOISE_ON_WINDOW
     n_window = base.n_residuals
-    variants, errors, explained_by, items = {}, {}, None, []
+    variants, errors, explained_by = {}, {}, None
     for c in one_start_each(candidates):
         if explained_by is not None and c.name not in family_of(explained_by):
             continue
         try:
-            pre = _prefit(run, [c.effect], start, data_sheet_start(rig, c))
-            score = (n_window * math.log(_objective(base) / max(_objective(pre), 1e-300))
-                     - bic_penalty(c.n_added, n_window))
+            pre = run.stages.prefit(recording, rig, [c.effect], start_values=data_sheet_start(rig, c), **options)
+            score = n_window * math.log(base.cost / max(pre.cost, 1e-300)) - bic_penalty(c.n_added, n_window)
         except Exception as exc:  # noqa: BLE001 - a candidate that cannot be integrated is reported, not raised
             if not is_solver_failure(exc):
                 raise
@@ -130,17 +110,15 @@ def screen_from_data_sheet(run, candidates: list, signatures: dict, start: int =
             errors.setdefault(c.name, str(exc))
         run.say(f"from the data sheet on {base.samples} samples from {t0:g} s: {c.label} "
                 + (f"ends at {pre.normalised_residual:.3g} times noise (score {score:.0f})" if pre else "failed"))
-        items.append((score, c, pre))
         if c.name not in variants or score > variants[c.name][0]:
             variants[c.name] = (score, c, pre)
         if (explained_by is None and window_shows_it and pre is not None
-                and math.sqrt(_objective(pre) / max(pre.n_residuals, 1)) <= AT_NOISE_ON_WINDOW):
+                and pre.normalised_residual <= AT_NOISE_ON_WINDOW):
             explained_by = c.name
             run.say(f"{c.label} explains the window down to the noise: only its look-alikes are screened further")
     trials = {eff: _trial(eff, score, c, pre, base, t0, signatures, errors)
               for eff, (score, c, pre) in variants.items()}
     ranked = sorted(variants, key=lambda k: -variants[k][0])
-    run.window_items = items
     return trials, variants, ranked, base
 
 
@@ -205,8 +183,6 @@ class _WholeFits:
         if why:
             trial.status = why
             run.second_only[eff] = c
-            return
-        if not run.can_fit(f"the fit with {c.label} from the data sheet", 1.5, [c.effect]):
             return
         self.budget -= 1
         run.say(f"fit with {c.label} from the data sheet")

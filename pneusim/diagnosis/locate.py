@@ -16,10 +16,9 @@ import numpy as np
 from scipy import stats
 
 from .result import MismatchWindow
-from .rules import EPISODE_GAP, FALSE_ALARM, LOCATE_WINDOW_S, LOCATE_WINDOW_SAMPLES, MAX_EPISODES, MAX_WINDOWS
+from .rules import FALSE_ALARM, LOCATE_WINDOW_S, LOCATE_WINDOW_SAMPLES, MAX_WINDOWS
 
-__all__ = ["operating_conditions", "locate_mismatch", "velocity_estimate", "named_states", "episodes",
-           "window_threshold", "windowed_mean_squares"]
+__all__ = ["operating_conditions", "locate_mismatch", "velocity_estimate", "named_states"]
 
 
 def named_states(fit) -> dict:
@@ -108,36 +107,6 @@ def _describe(masks: dict, a: int, b: int) -> str:
     return ", ".join(words)
 
 
-def window_threshold(recording, window_s: float | None = None) -> tuple[int, float]:
-    """``(m, threshold)``: the sliding window's length in samples (:data:`~.rules.LOCATE_WINDOW_S`, at least
-    :data:`~.rules.LOCATE_WINDOW_SAMPLES`) and the chi-square quantile of pure noise its mean square exceeds with
-    probability :data:`~.rules.FALSE_ALARM` over the recording (Bonferroni over its windows)."""
-    t = recording.time_s
-    dt = float(t[1] - t[0])
-    m = max(LOCATE_WINDOW_SAMPLES, int(round((window_s or LOCATE_WINDOW_S) / dt)))
-    n_windows = max(1, t.size // m)
-    return m, float(stats.chi2.ppf(1.0 - FALSE_ALARM / n_windows, m) / m)
-
-
-def windowed_mean_squares(recording, model_states: dict, noise_std: dict, m: int) -> dict:
-    """``{signal: (N,) mean square of its residual over the sensor noise, over a sliding window of m samples}``
-    for every measured signal the model gives (position, and the pressures when recorded)."""
-    measured = {"position_m": recording.position_m}
-    if recording.has_pressures:
-        measured["pressure_a_Pa"] = recording.pressure_a_Pa
-        measured["pressure_b_Pa"] = recording.pressure_b_Pa
-    out = {}
-    for name, y in measured.items():
-        yhat = model_states.get(name)
-        sigma = float(noise_std.get(name, 0.0))
-        if yhat is None or not sigma > 0:
-            continue
-        z2 = ((y - yhat) / sigma) ** 2
-        z2 = np.where(np.isfinite(z2), z2, 0.0)
-        out[name] = np.convolve(z2, np.ones(m) / m, mode="same")
-    return out
-
-
 def locate_mismatch(recording, rig, model_states: dict, noise_std: dict, window_s: float | None = None,
                     max_windows: int = MAX_WINDOWS) -> tuple[list[MismatchWindow], dict]:
     """Windows where the residual of a signal exceeds what its sensor noise explains.
@@ -165,11 +134,25 @@ def locate_mismatch(recording, rig, model_states: dict, noise_std: dict, window_
         and per signal the fraction of the recording flagged.
     """
     t = recording.time_s
+    dt = float(t[1] - t[0])
+    m = max(LOCATE_WINDOW_SAMPLES, int(round((window_s or LOCATE_WINDOW_S) / dt)))
     n = t.size
-    m, threshold = window_threshold(recording, window_s)
+    n_windows = max(1, n // m)
+    threshold = float(stats.chi2.ppf(1.0 - FALSE_ALARM / n_windows, m) / m)
     masks = operating_conditions(recording, rig)
     found, info = [], {"threshold": threshold, "window_samples": m, "flagged_fraction": {}}
-    for name, mean_sq in windowed_mean_squares(recording, model_states, noise_std, m).items():
+    measured = {"position_m": recording.position_m}
+    if recording.has_pressures:
+        measured["pressure_a_Pa"] = recording.pressure_a_Pa
+        measured["pressure_b_Pa"] = recording.pressure_b_Pa
+    for name, y in measured.items():
+        yhat = model_states.get(name)
+        sigma = float(noise_std.get(name, 0.0))
+        if yhat is None or not sigma > 0:
+            continue
+        z2 = ((y - yhat) / sigma) ** 2
+        z2 = np.where(np.isfinite(z2), z2, 0.0)
+        mean_sq = np.convolve(z2, np.ones(m) / m, mode="same")
         flagged = mean_sq > threshold
         info["flagged_fraction"][name] = float(np.mean(flagged))
         edges = np.flatnonzero(np.diff(np.concatenate([[0], flagged.astype(int), [0]])))
@@ -179,25 +162,3 @@ def locate_mismatch(recording, rig, model_states: dict, noise_std: dict, window_
     found.sort(key=lambda w: -w.score)
     found = sorted(found[:max_windows], key=lambda w: (w.t_start_s, w.signal))
     return found, info
-
-
-def episodes(windows: list, duration_s: float, max_episodes: int = MAX_EPISODES) -> list[MismatchWindow]:
-    """Mismatch windows merged into a few episodes a reader can follow: windows closer than
-    :data:`~.rules.EPISODE_GAP` of the recording's duration ``duration_s`` join one episode (its signals joined,
-    the condition of its strongest window, its strongest score); the ``max_episodes`` strongest, in time order.
-    """
-    merged: list[list] = []
-    gap = EPISODE_GAP * duration_s
-    for w in sorted(windows, key=lambda w: w.t_start_s):
-        if merged and w.t_start_s - max(x.t_end_s for x in merged[-1]) <= gap:
-            merged[-1].append(w)
-        else:
-            merged.append([w])
-    out = []
-    for group in merged:
-        strongest = max(group, key=lambda w: w.score)
-        signals = sorted({w.signal for w in group}, key=["position_m", "pressure_a_Pa", "pressure_b_Pa"].index)
-        out.append(MismatchWindow(min(w.t_start_s for w in group), max(w.t_end_s for w in group), ", ".join(signals),
-                                  strongest.condition, strongest.score))
-    out.sort(key=lambda w: -w.score)
-    return sorted(out[:max(1, max_episodes)], key=lambda w: w.t_start_s)

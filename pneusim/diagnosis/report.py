@@ -1,233 +1,351 @@
-"""The report folder of a diagnosis: ``index.html`` (open this one: self-contained, its figures inlined),
-``report.md``, the figures, ``diagnosis.json``.
+"""The report folder of a diagnosis: ``index.html`` (open this one), ``report.md``, plots, ``diagnosis.json``.
 
-The page says, in order: the verdict (what is missing, most important first; ``other`` in plain words; whether
-the time budget stopped the diagnosis); the validation fit of each model; ``fit.png`` (measured, nominal and
-with the findings, their errors, and a zoom on the strongest mismatch episode); ``residuals.png`` (the
-residuals before and after in units of the sensor noise); per finding its evidence, its parameters and its
-evidence plot (:mod:`.evidence`: the signature that identifies it, drawn where it shows); for ``other`` where
-the unexplained residual is, its signature numbers and the closest candidates with why each was rejected; the
-nominal parameters from the data sheet, fitted without the findings and with them (missing physics bends a
-fit: the lesson is in that table); the mismatch episodes; every candidate screened; where the time went.
-Every figure goes through the figure standard (:mod:`pneusim.plotting`).
+Plots (PNG):
+
+* ``fit.png`` -- measured position (and pressures) against the fitted nominal model and the improved
+  model (all findings switched on), mismatch windows shaded, the validation part marked;
+* ``residuals.png`` -- residuals before (nominal) and after (improved) over time, in units of the
+  sensor noise, with the mismatch windows shaded;
+* ``evidence-N-EFFECT.png`` -- the evidence of each finding, before and after modelling it (residual
+  against direction, pressure difference, position, lag, or the command-velocity map).
 """
 
 from __future__ import annotations
 
+import html
 import math
 from pathlib import Path
 
 import numpy as np
 
-from ..model.effects import EFFECTS
-from ..plotting import COLOURS, Curve, Signal, bar_gauge, compare_figure, mm, new_figure, save_figure, write_page
-from .evidence import Compared, evidence_figure
-from .locate import named_states
+from ..outputs import savefig_atomic, write_json_atomic, write_text_atomic
+from .locate import named_states, velocity_estimate
 from .refits import noise_levels
 from .result import DiagnosisResult
 
-__all__ = ["write_report", "plot_fit", "plot_residuals"]
+__all__ = ["write_report"]
 
 
-def _value(v, fmt: str = ".4g") -> str:
-    if isinstance(v, str):
-        return v
-    return format(v, fmt) if v is not None and math.isfinite(v) else "n/a"
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
 
 
-def _improved(result: DiagnosisResult) -> bool:
-    return result.final_fit is not None and result.final_fit is not result.nominal_fit
-
-
-def _with_label(result: DiagnosisResult) -> str:
-    names = [f.effect for f in result.findings if f.effect != "other"]
-    return "with " + " + ".join(names) if names else "nominal"
-
-
-def _window(result: DiagnosisResult):
-    """The strongest mismatch episode, ``(t0, t1)``, or None."""
-    if not result.mismatch:
-        return None
-    w = max(result.mismatch, key=lambda w: w.score)
-    return (w.t_start_s, w.t_end_s) if w.t_end_s > w.t_start_s else None
+def _shade(ax, result, signal=None):
+    for w in result.mismatch:
+        if signal is None or w.signal == signal:
+            ax.axvspan(w.t_start_s, w.t_end_s, color="C3", alpha=0.12, lw=0)
 
 
 def plot_fit(result: DiagnosisResult, path) -> Path:
-    """Measured position (and pressures) against the nominal model and the model with the findings, their
-    errors, and a zoom on the strongest mismatch episode."""
+    plt = _plt()
     rec = result.nominal_fit.recording
+    t = rec.time_s
     nom, fin = named_states(result.nominal_fit), named_states(result.final_fit)
-    atm = float(result.nominal_fit.rig.params.get("atmosphere_Pa", 101325.0))
-    rows = [("position_m", mm, "position (mm)", "mm")]
+    signals = [("position_m", rec.position_m, 1e3, "position (mm)")]
     if rec.has_pressures:
-        rows += [(name, lambda p: bar_gauge(p, atm), f"{label} (bar gauge)", "bar")
-                 for name, label in (("pressure_a_Pa", "p_A"), ("pressure_b_Pa", "p_B"))]
-    signals = []
-    for name, scale, label, unit in rows:
-        curves = [Curve("nominal", scale(nom[name]), result.nominal["fit_percent"] if name == "position_m" else None,
-                        color=COLOURS["nominal"], ls="--")]
-        if _improved(result):
-            curves.append(Curve(_with_label(result), scale(fin[name]),
-                                result.final_fit_percent if name == "position_m" else None, color=COLOURS["improved"]))
-        signals.append(Signal(scale(getattr(rec, name)), curves, label, unit))
-    fig, _ = compare_figure(rec.time_s, signals=signals, split_s=result.validation["t_start_s"], window=_window(result),
-                            title=f"{result.recording}: measured against the nominal model and "
-                                  f"{'the model ' + _with_label(result) if _improved(result) else 'nothing better'} "
-                                  "(validation fit in the legend)")
-    return save_figure(fig, path)
+        signals += [("pressure_a_Pa", rec.pressure_a_Pa, 1e-5, "p_A (bar abs)"),
+                    ("pressure_b_Pa", rec.pressure_b_Pa, 1e-5, "p_B (bar abs)")]
+    fig, axes = plt.subplots(len(signals), 1, sharex=True, figsize=(11, 3.0 * len(signals)), squeeze=False)
+    split = result.validation["t_start_s"]
+    improved = result.findings and result.final_fit is not result.nominal_fit
+    for ax, (name, y, scale, label) in zip(axes[:, 0], signals):
+        ax.plot(t, y * scale, lw=0.8, color="0.2", label="measured")
+        ax.plot(t, nom[name] * scale, lw=0.8, color="C0", label=f"nominal ({result.nominal['fit_percent']:.1f} %)")
+        if improved:
+            ax.plot(t, fin[name] * scale, lw=0.8, color="C2", ls="--",
+                    label=f"with {' + '.join(result.effects)} ({result.final_fit_percent:.1f} %)")
+        _shade(ax, result, name)
+        ax.axvline(split, color="0.4", ls=":", lw=1)
+        ax.set_ylabel(label)
+    axes[0, 0].set_title(f"{result.recording}: measured vs models (validation fit in brackets; validation from "
+                         f"{split:.1f} s, mismatch windows shaded)", fontsize=9)
+    axes[0, 0].legend(loc="upper right", fontsize=8, ncol=3)
+    axes[-1, 0].set_xlabel("time (s)")
+    fig.tight_layout()
+    savefig_atomic(fig, path, dpi=110)
+    plt.close(fig)
+    return Path(path)
 
 
 def plot_residuals(result: DiagnosisResult, path, noise: dict) -> Path:
-    """The residuals before (nominal) and after (with the findings), in units of the sensor noise, the mismatch
-    episodes shaded."""
+    plt = _plt()
     rec = result.nominal_fit.recording
     t = rec.time_s
     nom, fin = named_states(result.nominal_fit), named_states(result.final_fit)
     names = ["position_m"] + (["pressure_a_Pa", "pressure_b_Pa"] if rec.has_pressures else [])
-    labels = {"position_m": "position", "pressure_a_Pa": "p_A", "pressure_b_Pa": "p_B"}
-    fig, axes = new_figure(len(names), 1, title="Residuals in units of the sensor noise: the nominal model and the "
-                                                "model with the findings (dotted: 3 noise stds; shaded: mismatch "
-                                                "episodes)", size=(9.0, 2.3 * len(names) + 0.7), squeeze=False,
-                           sharex=True)
+    fig, axes = plt.subplots(len(names), 1, sharex=True, figsize=(11, 2.4 * len(names)), squeeze=False)
     for ax, name in zip(axes[:, 0], names):
-        y, s = getattr(rec, name), noise[name]
-        ax.plot(t, (y - nom[name]) / s, lw=0.6, color=COLOURS["nominal"], label="nominal")
-        if _improved(result):
-            ax.plot(t, (y - fin[name]) / s, lw=0.6, color=COLOURS["improved"], label=_with_label(result))
+        y = getattr(rec, name)
+        s = noise[name]
+        ax.plot(t, (y - nom[name]) / s, lw=0.6, color="C0", label="before (nominal)")
+        if result.findings:
+            ax.plot(t, (y - fin[name]) / s, lw=0.6, color="C2", label="after (with findings)")
+        ax.axhline(0, color="0.5", lw=0.5)
         for k in (-3, 3):
-            ax.axhline(k, color=COLOURS["reference"], lw=0.6, ls=":")
-        for w in result.mismatch:
-            ax.axvspan(w.t_start_s, w.t_end_s, color=COLOURS["window"], alpha=0.4, lw=0)
-        ax.axvline(result.validation["t_start_s"], color=COLOURS["reference"], ls=":", lw=1)
-        ax.set_ylabel(f"{labels[name]} residual (noise stds)")
-    axes[0, 0].legend(fontsize=8)
+            ax.axhline(k, color="0.6", lw=0.5, ls=":")
+        _shade(ax, result, name)
+        ax.axvline(result.validation["t_start_s"], color="0.4", ls=":", lw=1)
+        ax.set_ylabel(f"{name}\nresidual / noise")
+    axes[0, 0].legend(loc="upper right", fontsize=8)
+    axes[0, 0].set_title("residuals in units of the sensor noise (dotted: +-3); shaded: mismatch beyond noise",
+                         fontsize=9)
     axes[-1, 0].set_xlabel("time (s)")
-    return save_figure(fig, path)
+    fig.tight_layout()
+    savefig_atomic(fig, path, dpi=110)
+    plt.close(fig)
+    return Path(path)
 
 
-def _other_figure(result: DiagnosisResult, path) -> Path:
-    """Where the residual nothing in the vocabulary explains is: the strongest episode, measured and the model
-    with the findings."""
-    c = Compared(result.nominal_fit.recording, result.final_fit.rig, result.nominal_fit, result.final_fit,
-                 "nominal", _with_label(result))
-    other = next(f for f in result.findings if f.effect == "other")
-    w = max(other.mismatch, key=lambda w: w.score)
-    t = c.t
-    a = int(np.searchsorted(t, w.t_start_s))
-    b = max(int(np.searchsorted(t, w.t_end_s)), a + 20)
-    pad = max(10, (b - a) // 4)
-    a, b = max(0, a - pad), min(t.size, b + pad)
-    fig, ax = new_figure(title=f"other: the strongest stretch the vocabulary does not explain ({t[a]:.1f}-"
-                               f"{t[b - 1]:.1f} s, {w.condition})", size=(8.0, 4.2))
-    ax.plot(t[a:b], mm(c.recording.position_m[a:b]), color=COLOURS["measured"], lw=1.2, label="measured")
-    for states, lab, colour, ls in c.models():
-        ax.plot(t[a:b], mm(states["position_m"][a:b]), color=colour, ls=ls, lw=1.0, label=lab)
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("position (mm)")
-    ax.legend(fontsize=8)
-    return save_figure(fig, path)
+def _binned(x, y, bins=20):
+    ok = np.isfinite(x) & np.isfinite(y)
+    x, y = x[ok], y[ok]
+    if x.size < bins * 3:
+        return np.array([]), np.array([])
+    values = np.unique(x)
+    if values.size <= bins:  # a few distinct levels (pulse commands): one point per level
+        return values, np.array([y[x == v].mean() for v in values])
+    edges = np.quantile(x, np.linspace(0, 1, bins + 1))
+    centres, means = [], []
+    for a, b in zip(edges[:-1], edges[1:]):
+        m = (x >= a) & (x <= b)
+        if m.sum() > 2:
+            centres.append(x[m].mean())
+            means.append(y[m].mean())
+    return np.array(centres), np.array(means)
 
 
-def _finding_blocks(result: DiagnosisResult, k: int, folder: Path) -> list:
-    f = result.findings[k]
-    name = f"evidence-{k + 1}-{f.effect}.png"
-    if f.effect == "other":
-        _other_figure(result, folder / name)
-        rows = [[f"{w.t_start_s:.2f}-{w.t_end_s:.2f}", w.signal, w.condition] for w in f.mismatch]
-        return [("h", (2, f"{k + 1}. Something not in the vocabulary (`other`)")),
-                ("p", f.evidence),
-                ("table", (["time (s)", "signal", "condition"], rows)),
-                ("table", (["signature of what is left", "value"],
-                           [[key, _value(v, ".3g")] for key, v in f.signatures.items()])),
-                ("table", (["closest vocabulary effect", "validation fit (%)", "why it was rejected"],
-                           [[c["effect"], _value(c.get("fit_percent"), ".2f"), c["why_rejected"]]
-                            for c in f.closest])),
-                ("fig", (name, f"where the vocabulary does not explain the recording ({f.effect})"))]
-    without = result.fits_without.get(f.effect, result.nominal_fit)
-    others = [g.effect for g in result.findings if g.effect not in (f.effect, "other")]
-    label = f"without it (with {' + '.join(others)})" if others else "without it (nominal)"
-    kind = EFFECTS[f.effect].evidence_plot
-    evidence_figure(kind, Compared(result.nominal_fit.recording, result.final_fit.rig, without, result.final_fit,
-                                   label, _with_label(result)), f.effect, folder / name)
-    rows = [[f"`{p}`", _value(v), _value(f.standard_errors.get(p))] for p, v in f.parameters.items()]
-    return [("h", (2, f"{k + 1}. `{f.effect}`: the validation fit loses {f.improvement_points:.2f} points without it")),
-            ("p", f"Evidence: {f.evidence}"),
-            ("table", (["parameter", "estimate", "standard error"], rows)),
-            ("fig", (name, f"{f.effect}: {kind}, without it and with every finding"))]
+#: which evidence plot shows each effect's signature (the residual over time for any other effect): the
+#: signature its ``evidence`` text reads (an Effect fact the contract does not declare yet)
+EVIDENCE_PLOTS = {
+    "friction_asymmetry": "direction", "external_load": "position",
+    "pressure_dependent_friction": "pressure difference", "supply_pressure_droop": "pressure difference",
+    "transport_delay": "lag", "valve_dynamics": "lag", "valve_deadband": "command map", "valve_offset": "command map",
+}
 
 
-def _parameter_table(result: DiagnosisResult) -> tuple:
-    """The nominal parameters: data sheet, fitted without the findings, fitted with them (with standard errors)."""
-    sheet = result.nominal_fit.rig.params
-    final = result.final_fit if _improved(result) else None
-    rows = []
-    for name, v in result.nominal["parameters"].items():
-        after = final.parameters.get(name) if final is not None else None
-        rows.append([f"`{name}`", _value(sheet.get(name)), _value(v),
-                     f"{_value(after.estimate)} +- {_value(after.std, '.2g')}" if after is not None else "-"])
-    return (["parameter", "data sheet", "fitted, nominal model", "fitted, " + _with_label(result)], rows)
+def _binned_residuals(ax, x, residuals, xlabel: str, ylabel: str, title: str) -> None:
+    """Binned means of each ``(residual, colour, label)`` against ``x``."""
+    for e, c, lab in residuals:
+        cx, cy = _binned(x, e)
+        ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
 
 
-def _blocks(result: DiagnosisResult, folder: Path) -> list:
-    d = result.to_dict()
-    names = [f.effect for f in result.findings]
-    if not names:
-        verdict = "**Nothing is missing**: no vocabulary effect improved the held-out fit by more than noise explains."
+def _plot_direction(ax, result, v, x, e_nom, e_fin, nom, fin):
+    _binned_residuals(ax, v * 1e3, [(e_nom * 1e3, "C0", "nominal"), (e_fin * 1e3, "C2", "with findings")],
+                      "measured velocity (mm/s)", "velocity residual (mm/s), binned mean",
+                      "residual against direction of motion")
+
+
+def _plot_position(ax, result, v, x, e_nom, e_fin, nom, fin):
+    _binned_residuals(ax, x * 1e3, [(e_nom * 1e3, "C0", "nominal"), (e_fin * 1e3, "C2", "with findings")],
+                      "position (mm)", "velocity residual (mm/s), binned mean", "residual against position")
+
+
+def _plot_pressure_difference(ax, result, v, x, e_nom, e_fin, nom, fin):
+    rec = result.nominal_fit.recording
+    if rec.has_pressures:
+        dp = np.abs(rec.pressure_a_Pa - rec.pressure_b_Pa)
+        xlabel = "|p_A - p_B| measured (bar)"
     else:
-        verdict = "**Physics left out**, most important first: " + ", ".join(f"`{n}`" for n in names) + "."
-        if "other" in names:
-            verdict += " `other` is something not in the vocabulary: where and under which conditions is below."
-    if result.status != "complete":
-        verdict += f" **The diagnosis was {result.status}**; the findings are those made by then."
-    fits = [["nominal (fitted)", f"{result.nominal['fit_percent']:.2f}"]]
-    fits += [[f"without `{n}` (the other findings in)", _value(result.fits_without[n].fit_percent, ".2f")]
-             for n in names if n in result.fits_without and len(result.fits_without) > 1]
-    if _improved(result):
-        fits.append([_with_label(result), f"{result.final_fit_percent:.2f}"])
-    blocks = [("h", (1, f"Mismatch diagnosis of {result.recording}")),
-              ("p", f"Rig `{result.rig}`; validation window {d['validation']['t_start_s']:.2f}-"
-                    f"{d['validation']['t_end_s']:.2f} s (never used for fitting)."),
-              ("h", (2, "Verdict")), ("p", verdict),
-              ("table", (["model", "validation fit of the position (%)"], fits)),
-              ("fig", ("fit.png", "measured against the nominal model and the model with the findings")),
-              ("fig", ("residuals.png", "residuals before and after, in units of the sensor noise"))]
-    for k in range(len(result.findings)):
-        blocks += _finding_blocks(result, k, folder)
-    blocks += [("h", (2, "The nominal parameters, from the data sheet, fitted without the findings and with them")),
-               ("p", "Missing physics bends a fit: the nominal parameters take whatever values make up for it. With "
-                     "the findings in, they move back towards the rig's."),
-               ("table", _parameter_table(result)),
-               ("h", (2, "Where the mismatch is")),
-               ("p", "Episodes where the nominal model's residual exceeds what the sensor noise explains (windows "
-                     "whose mean square is above the chi-square quantile of pure noise, merged)."),
-               ("table", (["from (s)", "to (s)", "signal", "condition"],
-                          [[f"{w.t_start_s:.2f}", f"{w.t_end_s:.2f}", w.signal, w.condition] for w in result.mismatch]))
-               if result.mismatch else ("p", "none: the nominal model explains the recording up to noise."),
-               ("h", (2, "Candidates screened and tested")), ("p", f"Test: {result.test}."),
-               ("table", (["effect", "screening score", "refitted", "validation fit (%)", "kept", "outcome"],
-                          [[c.effect, _value(c.score, ".0f"), "yes" if c.refitted else "no",
-                            _value(c.fit_percent, ".2f"), "yes" if c.kept else "no", c.status]
-                           for c in result.candidates])),
-               ("h", (2, "Where the time went")), ("p", _timing_text(result))]
-    return blocks
+        dp = np.abs(nom["pressure_a_Pa"] - nom["pressure_b_Pa"])
+        xlabel = "|p_A - p_B| of the nominal model (bar)"
+    residuals = [(np.abs(e_nom) * 1e3, "C0", "nominal"), (np.abs(e_fin) * 1e3, "C2", "with findings")]
+    _binned_residuals(ax, dp * 1e-5, residuals, xlabel, "|velocity residual| (mm/s), binned mean",
+                      "residual against the pressure difference across the seal")
 
 
-def _timing_text(result: DiagnosisResult) -> str:
-    timing = result.timing
-    stages = ", ".join(f"{k[:-2].replace('_', ' ')} {v:.0f} s" for k, v in timing.items()
-                       if k.endswith("_s") and k not in ("total_s", "cpu_s") and isinstance(v, (int, float)))
-    return (f"{result.seconds:.0f} s in all ({timing.get('cpu_s', math.nan):.0f} s of CPU time): {stages}. "
-            "The JSON result is `diagnosis.json`.")
+def _plot_lag(ax, result, v, x, e_nom, e_fin, nom, fin):
+    rec = result.nominal_fit.recording
+    t, u = rec.time_s, rec.valve_cmd_V
+    dt = float(t[1] - t[0])
+    du = np.diff(u)
+    lags = np.arange(0, max(3, min(int(0.2 / dt), du.size // 4)))
+    for st, c, lab in ((nom, "C0", "nominal"), (fin, "C2", "with findings")):
+        dr = np.diff(np.where(np.isfinite(st["position_m"]), x - st["position_m"], 0.0))
+        cc = [np.corrcoef(du[:du.size - L], dr[L:])[0, 1] if np.std(dr[L:]) > 0 else np.nan for L in lags]
+        ax.plot(lags * dt * 1e3, cc, "o-", color=c, label=lab, ms=3)
+    ax.axhline(0, color="0.5", lw=0.5)
+    ax.set_xlabel("lag (ms)")
+    ax.set_ylabel("correlation of command and residual increments")
+    ax.set_title("input-residual cross-correlation")
+
+
+def _plot_command_map(ax, result, v, x, e_nom, e_fin, nom, fin):
+    u = result.nominal_fit.recording.valve_cmd_V
+    null = float(result.nominal_fit.rig.params.get("valve_null_V", 5.0))
+    small = np.abs(u - null) < 3.0
+    for vv, c, lab in ((v, "0.2", "measured"), (nom["velocity_m_per_s"], "C0", "nominal"),
+                       (fin["velocity_m_per_s"], "C2", "with findings")):
+        cx, cy = _binned(np.round(u[small], 2), vv[small] * 1e3, bins=30)
+        ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
+    ax.axvline(null, color="0.5", lw=0.5, ls=":")
+    ax.set_xlabel("valve command (V)")
+    ax.set_ylabel("velocity (mm/s), binned mean")
+    ax.set_title("command-velocity map (mean velocity at each command)")
+
+
+def _plot_over_time(ax, result, v, x, e_nom, e_fin, nom, fin):
+    rec = result.nominal_fit.recording
+    t, s = rec.time_s, result.signatures
+    ax.plot(t, (x - nom["position_m"]) * 1e3, lw=0.6, color="C0", label="nominal")
+    ax.plot(t, (x - fin["position_m"]) * 1e3, lw=0.6, color="C2", label="with findings")
+    if rec.has_pressures:
+        ax2 = ax.twinx()
+        ax2.plot(t, (rec.pressure_a_Pa - nom["pressure_a_Pa"]) * 1e-3, lw=0.4, color="C1", alpha=0.6,
+                 label="p_A residual, nominal (kPa)")
+        ax2.plot(t, (rec.pressure_a_Pa - fin["pressure_a_Pa"]) * 1e-3, lw=0.4, color="C4", alpha=0.6,
+                 label="p_A residual, with findings (kPa)")
+        ax2.set_ylabel("pressure residual (kPa)")
+        ax2.legend(loc="lower right", fontsize=7)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("position residual (mm)")
+    ax.set_title(f"residual over time (creep near null {s.get('creep_mm_s', float('nan')):+.3f} mm/s)")
+
+
+_PLOTS = {"direction": _plot_direction, "position": _plot_position, "pressure difference": _plot_pressure_difference,
+          "lag": _plot_lag, "command map": _plot_command_map}
+
+
+def plot_evidence(result: DiagnosisResult, k: int, path) -> Path:
+    """The evidence of finding ``k``: the signature before (nominal) and after (with the findings up to k),
+    as :data:`EVIDENCE_PLOTS` says for its effect."""
+    plt = _plt()
+    eff = result.findings[k].effect
+    rec = result.nominal_fit.recording
+    t, x = rec.time_s, rec.position_m
+    nom, fin = named_states(result.nominal_fit), named_states(result.final_fit)
+    v = velocity_estimate(t, x)
+    e_nom = v - velocity_estimate(t, np.nan_to_num(nom["position_m"]))
+    e_fin = v - velocity_estimate(t, np.nan_to_num(fin["position_m"]))
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    plot = _PLOTS.get(EVIDENCE_PLOTS.get(eff), _plot_over_time)
+    plot(ax, result, v, x, e_nom, e_fin, nom, fin)
+    ax.legend(fontsize=8)
+    fig.suptitle(f"{k + 1}. {eff}", fontsize=10)
+    fig.tight_layout()
+    savefig_atomic(fig, path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def _value(v):
+    if isinstance(v, str):
+        return v
+    return f"{v:.4g}" if v is not None and math.isfinite(v) else "n/a"
+
+
+def _markdown(result: DiagnosisResult, evidence_files) -> str:
+    d = result.to_dict()
+    lines = [f"# Mismatch diagnosis of {result.recording}", "",
+             f"Rig `{result.rig}`; validation window {d['validation']['t_start_s']:.2f}-{d['validation']['t_end_s']:.2f} s "
+             "(never used for fitting).", "",
+             "## Verdict", ""]
+    if not result.findings:
+        lines.append("**Nothing is missing**: no vocabulary effect improved the held-out fit by more than noise explains.")
+    else:
+        lines.append("**Physics left out**: " + ", ".join(f"`{f.effect}`" for f in result.findings) + ".")
+    lines += ["", "| model | validation fit of the position (%) |", "|---|---|",
+              f"| nominal (fitted) | {result.nominal['fit_percent']:.2f} |"]
+    acc = []
+    for f in result.findings:
+        acc.append(f.effect)
+        lines.append(f"| nominal + {' + '.join(acc)} | {f.fit_percent:.2f} (+{f.improvement_points:.2f}) |")
+    lines += ["", "![measured vs nominal vs improved](fit.png)", "", "![residuals before and after](residuals.png)", ""]
+    for k, f in enumerate(result.findings):
+        lines += [f"## Finding {k + 1}: `{f.effect}`", "", f"Evidence: {f.evidence}", "",
+                  "| parameter | estimate | standard error |", "|---|---|---|"]
+        for name, v in f.parameters.items():
+            lines.append(f"| `{name}` | {_value(v)} | {_value(f.standard_errors.get(name))} |")
+        lines += ["", f"![evidence for {f.effect}]({evidence_files[k]})", ""]
+    lines += ["## Where the mismatch is", "",
+              "Windows where the nominal model's residual exceeds what the sensor noise explains "
+              "(windowed mean square above the chi-square quantile of pure noise):", ""]
+    if result.mismatch:
+        lines += ["| from (s) | to (s) | signal | condition |", "|---|---|---|---|"]
+        lines += [f"| {w.t_start_s:.3f} | {w.t_end_s:.3f} | {w.signal} | {w.condition} |" for w in result.mismatch]
+    else:
+        lines.append("none: the nominal model explains the recording up to noise.")
+    lines += ["", "## Candidates screened and tested", "", f"Test: {result.test}.", ""]
+    if result.candidates:
+        lines += ["| effect | screening score | refitted | validation fit (%) | kept | outcome |", "|---|---|---|---|---|---|"]
+    else:
+        lines.append("none screened (see the test above).")
+    for c in result.candidates:
+        lines.append(f"| {c.effect} | {_value(c.score)} | {'yes' if c.refitted else 'no'} | "
+                     f"{_value(c.fit_percent)} | {'yes' if c.kept else 'no'} | {c.status} |")
+    lines += ["", "## Nominal parameters (fitted)", "", "| parameter | estimate |", "|---|---|"]
+    lines += [f"| `{k}` | {_value(v)} |" for k, v in result.nominal["parameters"].items()]
+    lines += ["", f"Diagnosis time {result.seconds:.0f} s. The JSON result is `diagnosis.json`.", ""]
+    return "\n".join(lines)
+
+
+def _html(markdown: str, title: str) -> str:
+    """A small Markdown-to-HTML conversion of the report's own constructs (headings, tables, images)."""
+    import re
+
+    out = [f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>",
+           "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;line-height:1.4}"
+           "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;font-size:90%}"
+           "img{max-width:100%}code{background:#eee;padding:0 3px}</style></head><body>"]
+    table = []
+
+    def inline(text):
+        text = html.escape(text)
+        text = re.sub(r"\*\*(.+?)\*\*", r"<b>\1</b>", text)
+        return re.sub(r"`(.+?)`", r"<code>\1</code>", text)
+
+    def flush():
+        if table:
+            rows = [r for r in table if not set(r.replace("|", "").strip()) <= set("-")]
+            cells = [[c.strip() for c in r.strip().strip("|").split("|")] for r in rows]
+            out.append("<table><tr>" + "".join(f"<th>{inline(c)}</th>" for c in cells[0]) + "</tr>")
+            for r in cells[1:]:
+                out.append("<tr>" + "".join(f"<td>{inline(c)}</td>" for c in r) + "</tr>")
+            out.append("</table>")
+            table.clear()
+
+    for line in markdown.splitlines():
+        if line.startswith("|"):
+            table.append(line)
+            continue
+        flush()
+        m = re.match(r"!\[(.*)\]\((.*)\)", line)
+        if line.startswith("## "):
+            out.append(f"<h2>{inline(line[3:])}</h2>")
+        elif line.startswith("# "):
+            out.append(f"<h1>{inline(line[2:])}</h1>")
+        elif m:
+            out.append(f"<p><img src='{html.escape(m.group(2))}' alt='{html.escape(m.group(1))}'></p>")
+        elif line.strip():
+            out.append(f"<p>{inline(line)}</p>")
+    flush()
+    out.append("</body></html>")
+    return "\n".join(out)
 
 
 def write_report(result: DiagnosisResult, folder) -> Path:
     """Write the report folder; returns the path of ``index.html`` (the file to open)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    result.write_json(folder / "diagnosis.json")
+    write_json_atomic(folder / "diagnosis.json", result.to_dict(), indent=1, allow_nan=False)   # as write_json
     noise = noise_levels(result.nominal_fit.recording, result.nominal_fit.rig)
     plot_fit(result, folder / "fit.png")
     plot_residuals(result, folder / "residuals.png", noise)
-    blocks = _blocks(result, folder)
-    return write_page(blocks, folder, f"diagnosis of {result.recording}", markdown="report.md",
-                      html_name="index.html")
+    evidence = []
+    for k, f in enumerate(result.findings):
+        name = f"evidence-{k + 1}-{f.effect}.png"
+        plot_evidence(result, k, folder / name)
+        evidence.append(name)
+    md = _markdown(result, evidence)
+    write_text_atomic(folder / "report.md", md)
+    index = folder / "index.html"
+    write_text_atomic(index, _html(md, f"diagnosis of {result.recording}"))
+    return index

@@ -53,16 +53,9 @@ class Finding:
     standard_errors : dict
         Their standard errors (same units; None where the data do not pin one down).
     fit_percent : float
-        Validation fit of the position with every finding modelled, %.
+        Validation fit of the position with this finding (and the ones ranked before it) modelled, %.
     improvement_points : float
-        What the validation fit loses when this finding is taken out and the others refitted (its importance;
-        for a lone finding, what it adds to the nominal fit), percentage points.
-    mismatch : list of MismatchWindow
-        ``other`` only: the episodes where the residual nothing in the vocabulary explains is.
-    closest : list of dict
-        ``other`` only: the vocabulary candidates that came closest, ``{"effect", "why_rejected"}``.
-    signatures : dict
-        ``other`` only: the signature numbers of that residual (:mod:`.signatures`).
+        ``fit_percent`` minus the validation fit without this finding, percentage points.
     """
 
     effect: str
@@ -71,19 +64,12 @@ class Finding:
     fit_percent: float
     improvement_points: float
     standard_errors: dict = field(default_factory=dict)
-    mismatch: list = field(default_factory=list)
-    closest: list = field(default_factory=list)
-    signatures: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        out = {"effect": self.effect, "evidence": self.evidence,
-               "parameters": {k: (_num(v) if not isinstance(v, str) else v) for k, v in self.parameters.items()},
-               "standard_errors": {k: _num(v) for k, v in self.standard_errors.items()},
-               "fit_percent": _num(self.fit_percent), "improvement_points": _num(self.improvement_points)}
-        if self.effect == "other":
-            out.update(mismatch=[w.to_dict() for w in self.mismatch], closest=list(self.closest),
-                       signatures={k: _num(v) for k, v in self.signatures.items()})
-        return out
+        return {"effect": self.effect, "evidence": self.evidence,
+                "parameters": {k: (_num(v) if not isinstance(v, str) else v) for k, v in self.parameters.items()},
+                "standard_errors": {k: _num(v) for k, v in self.standard_errors.items()},
+                "fit_percent": _num(self.fit_percent), "improvement_points": _num(self.improvement_points)}
 
 
 @dataclass
@@ -137,19 +123,9 @@ class DiagnosisResult:
     seconds : float
         Wall time of the diagnosis.
     timing : dict
-        ``total_s`` (wall), ``cpu_s`` (CPU time of every thread), ``<stage>_s`` the wall time of each stage that
-        ran (``nominal_fit``, ``locate``, ``screening``, ``window_set``, ``joint_fits``, ``single_fits``,
-        ``delay_scan``, ``on_top``, ``drop_one``, ``other``) and ``cpu_by_stage`` their CPU time.
-    status : str
-        ``"complete"``, or ``"stopped by the time budget: ..."`` with the step the budget refused (the result
-        then holds what the diagnosis had found by then).
+        ``nominal_fit_s``, ``screening_s``, ``refits_s``: wall time of each stage.
     nominal_fit, final_fit : FitResult
         The fits themselves (for plots; not part of the JSON).
-    windows : list of MismatchWindow
-        The nominal model's mismatch windows before they were merged into ``mismatch``'s episodes (for plots).
-    fits_without : dict
-        ``{effect: the fit with every other finding but this one}`` (the nominal fit for a lone finding; for
-        the evidence plots).
     """
 
     recording: str
@@ -163,13 +139,10 @@ class DiagnosisResult:
     test: str = ""
     seconds: float = 0.0
     timing: dict = field(default_factory=dict)
-    status: str = "complete"
     nominal_fit: object = None
     final_fit: object = None
     signatures: dict = field(default_factory=dict)
     fits: dict = field(default_factory=dict)
-    windows: list = field(default_factory=list)
-    fits_without: dict = field(default_factory=dict)
 
     @property
     def effects(self) -> list[str]:
@@ -191,10 +164,7 @@ class DiagnosisResult:
             "final_fit_percent": _num(self.final_fit_percent),
             "candidates": [c.to_dict() for c in self.candidates],
             "test": self.test,
-            "status": self.status,
-            "timing": {"total_s": _num(self.seconds, 4),
-                       **{k: ({kk: _num(vv, 4) for kk, vv in v.items()} if isinstance(v, dict) else _num(v, 4))
-                          for k, v in self.timing.items()}},
+            "timing": {"total_s": _num(self.seconds, 4), **{k: _num(v, 4) for k, v in self.timing.items()}},
         }
 
     def write_json(self, path) -> Path:
@@ -216,9 +186,8 @@ class DiagnosisResult:
         for k, f in enumerate(self.findings, 1):
             params = ", ".join(f"{n} = {v:.4g}" if not isinstance(v, str) else f"{n} = {v}"
                                for n, v in f.parameters.items())
-            lines.append(f"{k}. {f.effect}: validation fit {f.fit_percent:.2f} % ({f.improvement_points:+.2f} "
-                         f"points without it); {params}")
+            lines.append(f"{k}. {f.effect}: validation fit {f.fit_percent:.2f} % (+{f.improvement_points:.2f} "
+                         f"points); {params}")
             lines.append(f"   evidence: {f.evidence}")
-        lines.append(f"final validation fit {self.final_fit_percent:.2f} %; {self.seconds:.0f} s"
-                     + ("" if self.status == "complete" else f"; {self.status}"))
+        lines.append(f"final validation fit {self.final_fit_percent:.2f} %; {self.seconds:.0f} s")
         return "\n".join(lines)

@@ -25,17 +25,15 @@ from ..fit import rules as fit_rules
 
 __all__ = [
     "MIN_SAMPLES", "VALIDATION_FRACTION", "VALIDATION_FRACTION_RANGE", "VALIDATION_MOTION_NOISE",
-    "FALSE_ALARM", "LOCATE_WINDOW_S", "LOCATE_WINDOW_SAMPLES", "MAX_WINDOWS", "EPISODE_GAP", "MAX_EPISODES",
+    "FALSE_ALARM", "LOCATE_WINDOW_S", "LOCATE_WINDOW_SAMPLES", "MAX_WINDOWS",
     "MODEL_SHORT", "MAX_REFITS", "MAX_LOOKALIKES", "MAX_FINDINGS",
     "SCREEN_SAMPLES", "SCREEN_EVALUATIONS", "SCANNED_EVALUATIONS", "DEFECT_WEIGHT", "DELAY_LAG_FACTORS",
     "DELAY_LAG_CORRELATION", "RELATIVE_SCORE", "MIN_EXPLAINED",
-    "WINDOW_SAMPLES", "PREFIT_EVALUATIONS", "PREFIT_DEFECT_WEIGHT", "AT_NOISE_ON_WINDOW", "WINDOW_SHOWS_MISMATCH",
-    "MAX_FITS", "EXPLAINED",
+    "WINDOW_SAMPLES", "PREFIT_EVALUATIONS", "AT_NOISE_ON_WINDOW", "WINDOW_SHOWS_MISMATCH", "MAX_FITS", "EXPLAINED",
     "RIVAL_WINDOW", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS",
     "MIN_IMPROVEMENT_POINTS", "ERROR_SHRINK", "CLEARLY_SHORT", "AT_NOISE", "PERFECT_ERROR",
     "DELAY_SCAN_ERROR_RATIO", "SCAN_FACTOR", "SCAN_REFITS", "DELAY_GRID_PER_SAMPLE", "MIN_DELAY_SAMPLES",
-    "ON_TOP_REFITS", "OTHER_RESIDUAL", "MAX_CLOSEST", "ACTS_SHARE", "LEFT_SHARE", "GROW_SHARE", "GROW_EVALUATIONS", "GROW_UNTIL",
-    "GROW_STARTS", "GROW_POOL", "TIME_BUDGET_S", "STATE_COST", "SOLVER_FAILURES",
+    "ON_TOP_REFITS", "OTHER_RESIDUAL", "SOLVER_FAILURES",
     "bic_penalty", "information_gain", "noise_floor_points", "validation_room", "passes_test", "keep_test_text",
     "screening_route", "is_solver_failure", "rules_table", "table_markdown",
 ]
@@ -58,13 +56,8 @@ FALSE_ALARM = 1e-3
 LOCATE_WINDOW_S = 0.1
 #: (samples) the sliding window is never shorter: a chi-square quantile of fewer degrees of freedom is too wide
 LOCATE_WINDOW_SAMPLES = 20
-#: (windows) at most this many mismatch windows are kept, the strongest
+#: (windows) at most this many mismatch windows are reported, the strongest
 MAX_WINDOWS = 50
-#: (fraction of the recording's duration) mismatch windows closer than this join one episode: a reader follows a
-#: few stretches of the recording, not dozens of tenth-of-a-second windows
-EPISODE_GAP = 0.02
-#: (episodes) at most this many episodes are reported, the strongest
-MAX_EPISODES = 6
 
 # ------------------------------------------------------------------------------ which screening, how many fits
 #: (normalised residual) the fit's own threshold (pneusim.fit.rules, one definition): a nominal fit ending more
@@ -75,9 +68,8 @@ MODEL_SHORT = fit_rules.MODEL_SHORT
 MAX_REFITS = 3
 #: (refits) look-alikes of each kept candidate (or of the leader) fitted in a second round, unless told otherwise
 MAX_LOOKALIKES = 2
-#: (effects) at most this many findings modelled together, unless told otherwise: a worn rig has a few effects
-#: at once, and each one more costs a whole fit
-MAX_FINDINGS = 4
+#: (effects) at most this many findings modelled together, unless told otherwise
+MAX_FINDINGS = 2
 
 # ---------------------------------------------------------------------------- near noise: around the nominal fit
 #: (samples) the screening's window: at most this many of the estimation part's first samples
@@ -106,9 +98,6 @@ WINDOW_SAMPLES = 2000
 #: (trust-region evaluations) of each pre-fit, direct route only: a rank needs no polish, and a wrong candidate
 #: may wander into stiff corners of its parameters
 PREFIT_EVALUATIONS = 40
-#: (1) the continuity weight of the pre-fit's direct route, the fit's own (pneusim.fit.rules): a pre-fit is ranked
-#: by the objective it minimised, its defects weighted so
-PREFIT_DEFECT_WEIGHT = fit_rules.PREFIT_DEFECT_WEIGHTS[-1]
 #: (normalised residual) a candidate whose pre-fit ends within this explains the window: only its look-alikes
 #: are pre-fitted after it
 AT_NOISE_ON_WINDOW = 1.2
@@ -164,46 +153,9 @@ MIN_DELAY_SAMPLES = 0.5
 #: (refits) at most this many kept candidates are refitted on top of the first finding, those that explain most
 #: there first: far from noise nearly every candidate passes the test against the nominal model alone
 ON_TOP_REFITS = 2
-#: (normalised residual) a model (with every finding, or the nominal one) whose estimation residual stays above
-#: this (the residuals alone, not the continuity defects a penalty fit left open), in mismatch windows and with
-#: its validation error above CLEARLY_SHORT F, leaves physics unexplained: ``other``
+#: (normalised residual) with nothing kept, a nominal residual above this (the residuals alone, not the
+#: continuity defects a penalty fit left open) in mismatch windows is reported as ``other``
 OTHER_RESIDUAL = 3.0
-#: (candidates) the ``other`` finding names at most this many closest vocabulary candidates, with why each was
-#: rejected
-MAX_CLOSEST = 3
-#: (fraction of the windowed mean square) a finding acts where the model without it misses beyond the noise and
-#: it takes away at least this share of that: what a look-alike and a true effect both do
-ACTS_SHARE = 0.5
-#: (fraction of the samples where it acts) a finding after which the model still misses beyond the noise over more
-#: than this share of where it acts, while physics is left unexplained, is a look-alike: a true effect takes the
-#: residual down to the noise where it acts, a look-alike only part of the way
-LEFT_SHARE = 0.5
-
-# ------------------------------------------------------------------------- several effects, found jointly
-#: (fraction of the excess cost) an effect joins the set chosen on the window only when it takes away at least
-#: this share of what the set leaves above the noise there: a flexible law takes a little from any structured
-#: residual, and far above noise the information criterion alone lets nearly every candidate in
-GROW_SHARE = 0.1
-#: (trust-region evaluations) of each pre-fit of a set on the window: sets are compared by where their pre-fits
-#: end, and a set of several effects needs more steps than one effect alone to get there
-GROW_EVALUATIONS = 120
-#: (normalised residual) the set grows on the window while its pre-fit ends above this: below, what is left is
-#: found on top of the set's whole fit and judged on the validation part, not by a window a flexible law can
-#: always bend a little closer
-GROW_UNTIL = 2.0
-#: (sets) the set grows from each of this many of the best-screened candidates, and the best set on the window
-#: wins: the effect that explains most alone may be a look-alike of two others together
-GROW_STARTS = 2
-#: (candidates) the set is grown from the best this many items screened alone on the window (each pre-fitted with
-#: the set every round costs seconds): an effect screened further behind is tried on top of the set's whole fit
-GROW_POOL = 6
-#: (CPU seconds) a diagnosis is given this much time unless told otherwise; what it has not done by then it does
-#: not start, and the result says so (five minutes: a user waits for a diagnosis, not for a batch job)
-TIME_BUDGET_S = 300.0
-#: (whole fits per added state) what a whole fit costs more for each state its effects add (a spool, chamber
-#: temperatures, a supply volume): the sensitivities grow with the states, and their fast dynamics take the
-#: integrator's steps down -- the budget expects a fit with heat transfer to cost about three nominal fits
-STATE_COST = 1.0
 
 
 # ---------------------------------------------------------------------------------- the keep test, as a rule

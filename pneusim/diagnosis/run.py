@@ -5,9 +5,8 @@ baseline every refit is compared with (:class:`NominalBaseline`), the options, t
 (:class:`~.estimator.DiagnosisStages`: the fits, the screenings, the keep test) and the progress line; and it
 records its outcome there: a :class:`~.result.CandidateTrial` per effect (``trials``), the kept and rejected
 refits (``refits``, ``{effect: (fit, candidate)}``), and the candidates left to the screening on top of the
-first finding (``second_only``, ``{effect: candidate}``).  It also holds the time budget and the stage clock
-(:mod:`.budget`) and the expected cost of a whole fit on this recording.  A test builds one with stand-in stages
-and runs one step alone.
+first finding (``second_only``, ``{effect: candidate}``).  A test builds one with stand-in stages and runs one
+step alone.
 """
 
 from __future__ import annotations
@@ -15,8 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable, NamedTuple
 
-from .budget import Budget, StageClock
-from .rules import MAX_FINDINGS, MAX_LOOKALIKES, MAX_REFITS, STATE_COST
+from .rules import MAX_FINDINGS, MAX_LOOKALIKES, MAX_REFITS
 
 __all__ = ["NominalBaseline", "DiagnosisRun"]
 
@@ -60,24 +58,6 @@ class DiagnosisRun:
         ``say(message)``: one progress line.
     trials, refits, second_only : dict
         What the steps found (see the module docstring).
-    budget : Budget
-        The CPU time the diagnosis may still use (:class:`~.budget.Budget`; no limit by default).
-    clock : StageClock
-        Wall and CPU seconds by stage.
-    fit_cost_s : float
-        The expected CPU cost of a whole fit on this recording: the nominal fit's own (0: unknown).
-    candidates : list of Candidate
-        Every variant of every vocabulary effect the diagnosis considers (:func:`.candidates.candidate_list`).
-    ranked : list of str
-        The effects in the order of the first screening.
-    final : FitResult or None
-        The fit with every finding, once the findings are settled.
-    window_items : list
-        Far above noise, every candidate's pre-fit alone on the window, ``[(score, candidate, pre-fit)]``.
-    fits_without : dict
-        ``{effect: the fit of the other findings without it}`` (drop-one's).
-    set_fits : dict
-        ``{frozenset of effect names: the lowest fit of that set met so far}`` (:meth:`remember`).
     """
 
     recording: object
@@ -93,32 +73,6 @@ class DiagnosisRun:
     trials: dict = field(default_factory=dict)
     refits: dict = field(default_factory=dict)
     second_only: dict = field(default_factory=dict)
-    budget: Budget = field(default_factory=Budget)
-    clock: StageClock = field(default_factory=StageClock)
-    fit_cost_s: float = 0.0
-    candidates: list = field(default_factory=list)
-    ranked: list = field(default_factory=list)
-    final: object = None
-    window_items: list = field(default_factory=list)
-    fits_without: dict = field(default_factory=dict)
-    set_fits: dict = field(default_factory=dict)
-
-    def remember(self, fit) -> None:
-        """Keep ``fit`` as the fit of its set of effects (``set_fits``) unless one of the same set is lower on the
-        estimation part."""
-        from .refits import estimation_cost
-
-        key = frozenset(e.name for e in fit.effects_)
-        known = self.set_fits.get(key)
-        if known is None or estimation_cost(fit, self.noise)[0] < estimation_cost(known, self.noise)[0]:
-            self.set_fits[key] = fit
-
-    def can_fit(self, step: str, fits: float = 1.0, effects=()) -> bool:
-        """Whether ``step``, ``fits`` whole fits' worth of CPU time with ``effects`` switched on, fits in the budget
-        (:meth:`.Budget.allows`): a whole fit costs the nominal fit's time, times ``1 +``
-        :data:`~.rules.STATE_COST` per state the effects add."""
-        states = sum(len(e.states) for e in effects)
-        return self.budget.allows(step, fits * self.fit_cost_s * (1.0 + STATE_COST * states))
 
     @property
     def noise(self) -> dict:

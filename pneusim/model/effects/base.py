@@ -16,8 +16,7 @@ is a subclass of :class:`Effect` in its own module of this package, and declares
 * **how diagnosis screens it** -- ``neutral`` (the values at which it is nearly absent, or ``None``),
   :meth:`Effect.screening_starts`, ``data_sheet_start``, ``scanned``,
   :meth:`Effect.added_parameters`, ``family`` (one of :data:`LOOK_ALIKE_FAMILIES`),
-  :meth:`Effect.evidence`, ``evidence_plot`` (one of :data:`EVIDENCE_PLOTS`), :meth:`Effect.reported_options`
-  and :meth:`Effect.derived_parameters`.
+  :meth:`Effect.evidence`, :meth:`Effect.reported_options` and :meth:`Effect.derived_parameters`.
 
 A fact every effect must declare starts as :data:`REQUIRED`; :func:`missing_facts` lists those an
 effect class left so (``tests/pneusim/model/test_effect_contract.py`` fails on any).  The registry
@@ -35,7 +34,7 @@ from typing import Mapping, Sequence
 
 from ...errors import PneusimError
 
-__all__ = ["Effect", "ScreeningStart", "REQUIRED", "LOOK_ALIKE_FAMILIES", "EVIDENCE_PLOTS", "POSITIVE", "NON_NEGATIVE",
+__all__ = ["Effect", "ScreeningStart", "REQUIRED", "LOOK_ALIKE_FAMILIES", "POSITIVE", "NON_NEGATIVE",
            "POSITIVE_NEAR_START", "in_range", "range_words", "missing_facts", "number_text"]
 
 
@@ -56,20 +55,6 @@ LOOK_ALIKE_FAMILIES = {
     "friction and force": "a force in the piston's balance that depends on direction, position or pressure",
     "valve null": "the valve's behaviour around its null (where it opens, how far from nominal)",
     "slow pneumatic": "chamber pressures that drift or sag slowly (leaks, heat exchange, the supply line)",
-}
-
-
-#: the evidence plots of the diagnosis report (:mod:`pneusim.diagnosis.evidence`): each effect's
-#: ``evidence_plot`` names the one that shows the signature that identifies it, drawn where it can be seen
-EVIDENCE_PLOTS = {
-    "worst window": "the stretch where the model without the effect misses most: measured, without it, with it",
-    "command map near null": "velocity against the valve command near null, at the command's resolution",
-    "creep while holding": "the piston and the chamber pressures while the valve holds near null",
-    "residual by direction": "the velocity residual against the measured velocity, extending and retracting",
-    "residual against pressure difference": "the velocity residual's size against |p_A - p_B|",
-    "residual against position": "the velocity residual against the piston's position",
-    "command-residual lag": "the cross-correlation of command and residual increments against the lag",
-    "long moves": "the piston's speed against the time the valve has been wide open",
 }
 
 
@@ -136,9 +121,6 @@ class Effect:
     data_sheet_start: tuple[str, float] | None = REQUIRED
     #: True when the screening starts away from the nominal model: it gets more trust-region evaluations
     scanned: bool = False
-    #: the diagnosis report's evidence plot, one of :data:`EVIDENCE_PLOTS`: the signature that identifies the
-    #: effect, drawn where it can be seen (the stretch where the model misses most unless declared)
-    evidence_plot: str = "worst window"
 
     def __init__(self, **values):
         self.values = dict(self.parameters)

@@ -35,8 +35,6 @@ class Leakage(Effect):
     fit_scale = {"conductance_kg_per_s_Pa": (1e-9, 0.0, None)}
 
     family = "slow pneumatic"
-    #: the report shows the creep and the pressures' drift while holding
-    evidence_plot = "creep while holding"
     neutral = {"conductance_kg_per_s_Pa": SCREENING_CONDUCTANCE_KG_PER_S_PA}
     #: every leak path is different physics: the screening from the data sheet keeps all three
     data_sheet_start = None

@@ -70,8 +70,6 @@ class PressureDependentFriction(Effect):
     fit_scale = {"pressure_coefficient": (1.0, 0.0, 20.0)}
 
     family = "friction and force"
-    #: the report shows a residual that grows with the pressure across the seal
-    evidence_plot = "residual against pressure difference"
     neutral = {"pressure_coefficient": SCREENING_COEFFICIENT}
     data_sheet_start = None   # one start only
 

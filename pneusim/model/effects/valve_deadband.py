@@ -29,8 +29,6 @@ class ValveDeadband(Effect):
     fit_scale = {"deadband_V": (0.2, 0.0, 2.5)}
 
     family = "valve null"
-    #: the report shows the flat spot around null
-    evidence_plot = "command map near null"
     neutral = {"deadband_V": SCREENING_DEADBAND_V}
     data_sheet_start = None   # one start only
 

@@ -24,8 +24,6 @@ class ValveOffset(Effect):
     fit_scale = {"offset_V": (0.1, -2.0, 2.0)}
 
     family = "valve null"
-    #: the report shows where the velocity crosses zero
-    evidence_plot = "command map near null"
     neutral = {"offset_V": 0.0}
     data_sheet_start = None   # one start only
 

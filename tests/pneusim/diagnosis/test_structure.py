@@ -126,15 +126,12 @@ def test_diagnosis_stages_default_to_todays_stages():
     from pneusim.diagnosis.around_nominal import confirm_around_nominal, screen_around_nominal
     from pneusim.diagnosis.candidates import polished_costs, screen
     from pneusim.diagnosis.delay import scan_kept_delay
-    from pneusim.diagnosis.findings import add_findings
+    from pneusim.diagnosis.findings import add_findings, other_finding
     from pneusim.diagnosis.from_data_sheet import confirm_from_data_sheet, screen_from_data_sheet
-    from pneusim.diagnosis.grow import grow_on_window
-    from pneusim.diagnosis.joint import drop_one, fit_set_from_data_sheet
     from pneusim.diagnosis.locate import locate_mismatch
-    from pneusim.diagnosis.other import other_finding
     from pneusim.diagnosis.refits import fit_from_data_sheet, fit_nominal, refit
     from pneusim.diagnosis.signatures import compute_signatures
-    from pneusim.diagnosis.window_fit import window_fit
+    from pneusim.fit import prefit_recording
 
     stages = diagnosis.DiagnosisStages()
     assert (stages.nominal_fit, stages.locate, stages.signatures) == (fit_nominal, locate_mismatch, compute_signatures)
@@ -142,10 +139,8 @@ def test_diagnosis_stages_default_to_todays_stages():
                                                                                confirm_around_nominal)
     assert (stages.screen_from_data_sheet, stages.confirm_from_data_sheet) == (screen_from_data_sheet,
                                                                                  confirm_from_data_sheet)
-    assert (stages.grow, stages.window_fit, stages.joint) == (grow_on_window, window_fit, fit_set_from_data_sheet)
-    assert (stages.delay_scan, stages.findings, stages.drop_one, stages.other) == (scan_kept_delay, add_findings,
-                                                                                   drop_one, other_finding)
-    assert (stages.screen, stages.polished_costs) == (screen, polished_costs)
+    assert (stages.delay_scan, stages.findings, stages.other) == (scan_kept_delay, add_findings, other_finding)
+    assert (stages.screen, stages.polished_costs, stages.prefit) == (screen, polished_costs, prefit_recording)
     assert (stages.refit, stages.fit, stages.keep_test) == (refit, fit_from_data_sheet, rules.passes_test)
     with pytest.raises(AttributeError):
         stages.refit = None                     # frozen: a diagnosis's stages do not change under it
@@ -156,8 +151,8 @@ def test_diagnose_keeps_its_signature():
     signature = inspect.signature(diagnosis.diagnose)
     defaults = {name: p.default for name, p in signature.parameters.items()}
     assert defaults == {"recording": inspect.Parameter.empty, "rig": None, "effects": None, "validation_fraction": 0.3,
-                        "max_refits": 3, "max_lookalikes": 2, "max_findings": rules.MAX_FINDINGS,
-                        "screen_samples": None, "progress": False, "time_budget_s": rules.TIME_BUDGET_S}
+                        "max_refits": 3, "max_lookalikes": 2, "max_findings": 2, "screen_samples": None,
+                        "progress": False}
 
 
 @pytest.mark.parametrize("path", MODULES, ids=lambda p: p.name)
