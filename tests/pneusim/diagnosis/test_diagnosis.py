@@ -291,6 +291,7 @@ def _scaled_residual(fit, factor):
     return dataclasses.replace(fit, sigma={k: v * math.sqrt(factor) for k, v in fit.sigma.items()})
 
 
+@pytest.mark.slow
 def test_refit_above_the_nominal_residual_is_retried_from_the_neutral_value(asymmetry_recording):
     """A refit nests the nominal model: one that ends above the nominal estimation residual was led into a
     worse basin by its screened start, and is refitted once more from the effect's neutral value with the
@@ -314,6 +315,7 @@ def test_refit_above_the_nominal_residual_is_retried_from_the_neutral_value(asym
     assert trial.estimation_cost_drop > 0
 
 
+@pytest.mark.slow
 def test_refit_below_the_nominal_residual_is_not_retried(asymmetry_recording):
     calls = []
 

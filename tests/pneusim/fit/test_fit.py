@@ -73,6 +73,7 @@ def test_noisy_truth_inside_three_sigma_for_ninety_percent():
     ("external_load", "force_N", -60.0, "paper2-enfield", "closed"),
     ("valve_offset", "offset_V", 0.15, "paper1-mre", "open"),
 ])
+@pytest.mark.slow
 def test_effect_parameter_recovered(effect, parameter, true_value, rig_name, loop):
     truth_effect = make_effect(effect, **{parameter: true_value})
     rig, truth, rec = _recording(rig_name, loop, True, seed=3, noise_scale=1.0, effects=[truth_effect])
@@ -88,6 +89,7 @@ def test_effect_parameter_recovered(effect, parameter, true_value, rig_name, loo
 
 
 @pytest.mark.parametrize("name", ["practice_04.csv", "practice_13.csv", "practice_16.csv", "practice_20.csv"])
+@pytest.mark.slow
 def test_practice_controls_fit_to_noise_level(shared_dir, name):
     """The practice recordings that hold no effect: the nominal model explains them up to noise."""
     answers = json.loads((shared_dir / "practice" / "answers.json").read_text())["cases"]
@@ -160,6 +162,7 @@ def _never_settled(*args):
     return None
 
 
+@pytest.mark.slow
 def test_a_constrained_run_given_up_falls_back_to_the_penalty_and_still_recovers():
     from functools import partial
 
@@ -177,6 +180,7 @@ def test_a_constrained_run_given_up_falls_back_to_the_penalty_and_still_recovers
         assert abs(p.estimate - truth[key]) < 3 * p.std + 0.01 * abs(truth[key]), (key, p.estimate, truth[key])
 
 
+@pytest.mark.slow
 def test_gauss_newton_settles_a_fit_at_noise_where_ipopt_would_end():
     """Where the full fit's trust region ends at noise, Gauss-Newton steps on the constrained problem
     settle it (IPOPT not run); the same fit finished by IPOPT instead ends within a fifth of a standard

@@ -19,6 +19,7 @@ def recording_file(tmp_path_factory, rig2):
     return path
 
 
+@pytest.mark.slow
 def test_fit_writes_json_and_report(recording_file, tmp_path, capsys):
     out = tmp_path / "fit.json"
     assert main(["fit", str(recording_file), "--json", str(out), "--report", str(tmp_path / "report")]) == 0

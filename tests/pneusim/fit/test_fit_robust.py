@@ -69,6 +69,7 @@ def nominal_fit(deadband_case):
     return fit_recording(rec, rig, quiet=True)
 
 
+@pytest.mark.slow
 def test_nominal_fit_of_a_dead_band_recording_says_it_is_above_noise(nominal_fit, tmp_path):
     result = nominal_fit
     assert result.normalised_residual > FAR_ABOVE_NOISE
@@ -81,6 +82,7 @@ def test_nominal_fit_of_a_dead_band_recording_says_it_is_above_noise(nominal_fit
     assert data["normalised_residual"] == pytest.approx(result.normalised_residual)
 
 
+@pytest.mark.slow
 def test_warm_refit_with_the_missing_effect_reaches_noise(deadband_case, nominal_fit):
     rig, rec, _ = deadband_case
     refit = fit_recording(rec, rig, [make_effect("valve_deadband")], warm_start=nominal_fit, quiet=True)
@@ -94,6 +96,7 @@ def test_warm_refit_with_the_missing_effect_reaches_noise(deadband_case, nominal
     assert refit.parameters["moving_mass_kg"].start == pytest.approx(nominal_fit.estimates["moving_mass_kg"])
 
 
+@pytest.mark.slow
 def test_start_values_override_the_warm_start(deadband_case, nominal_fit):
     """Diagnosis starts a refit's friction levels where its screening left them: the named values
     replace the warm fit's, the refit still reaches noise, and an unknown name is refused."""
@@ -125,6 +128,7 @@ def test_prefit_alone_tells_the_missing_effect_from_the_data_sheet(deadband_case
     assert with_it.estimates["valve_deadband.deadband_V"] == pytest.approx(DEADBAND_V, rel=0.05)
 
 
+@pytest.mark.slow
 def test_warm_start_from_another_recording_is_refused(deadband_case, nominal_fit):
     from pneusim.errors import FitError
 
@@ -134,6 +138,7 @@ def test_warm_start_from_another_recording_is_refused(deadband_case, nominal_fit
         fit_recording(shorter, rig, warm_start=nominal_fit, quiet=True)
 
 
+@pytest.mark.slow
 def test_cli_exits_3_far_above_noise(deadband_case, tmp_path, capsys):
     _, _, path = deadband_case
     out = tmp_path / "fit.json"
@@ -200,6 +205,7 @@ def test_recording_starting_mid_stick_slip_with_stops_reaches_noise():
     assert s["inside_3_sigma"] >= s["parameters"] - 1, s["z"]
 
 
+@pytest.mark.slow
 def test_prefit_window_moves_to_where_a_piston_resting_at_its_stop_starts_to_move():
     """Paper 1, open-loop multisine with pressures (``s1018`` of the robustness set): the piston rests at
     its end stop for the first 3.3 s, the whole first 2000-sample window.  A pre-fit there says nothing about
@@ -258,6 +264,7 @@ def test_trust_region_starts_afresh_after_a_stall_on_its_step_tolerance_above_no
     assert runs(2.0, 3, restarts=0) == [2.0]
 
 
+@pytest.mark.slow
 def test_pulses_whose_prefit_may_stall_above_noise_reach_noise():
     """Paper 2, closed-loop pulses without pressures (``s1033`` of the robustness set): the pre-fit's trust
     region may stop on SciPy's step tolerance above noise (about twice the noise, with the conductance 13 %
@@ -295,6 +302,7 @@ def _window(seed: int, at_truth: bool = False):
     return pb, setup, truth
 
 
+@pytest.mark.slow
 def test_filtered_starts_follow_a_chaotic_recording_at_its_true_parameters():
     """Paper 2, open-loop multisine without pressures (``s1007``), its 2000-sample pre-fit window at the
     true parameters: segments started from the chained simulation leave the recorded slip pattern (the
@@ -317,6 +325,7 @@ def test_filtered_starts_follow_a_chaotic_recording_at_its_true_parameters():
     assert rms_filtered < ABOVE_NOISE_WARNING
 
 
+@pytest.mark.slow
 def test_filter_innovations_are_white_at_the_true_parameters():
     """At the true parameters the filter predicts each sample to within its own predicted uncertainty: the
     whitened innovations of ``s1030``'s window (paper 2, open-loop multisine, both pressures, a chaotic
@@ -339,6 +348,7 @@ def test_filter_innovations_are_white_at_the_true_parameters():
     assert np.sqrt(np.mean(at_sheet["innovations"] ** 2)) > 3.0
 
 
+@pytest.mark.slow
 def test_prediction_error_fit_recovers_a_chaotic_recording_from_the_data_sheet():
     """``s1030``: every pre-fit of the shooting problem from the data sheet ends more than five times above
     noise.  Least squares on the filter's innovations from the same start end at the noise level with all

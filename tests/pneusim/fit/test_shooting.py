@@ -79,6 +79,7 @@ def test_residuals_are_each_sample_against_its_segment(window):
     assert np.array_equal(e["g"], np.concatenate(defects))
 
 
+@pytest.mark.slow
 def test_jacobians_match_central_differences(window):
     pb, problem, v, _ = window
     jr, jg = pb.jacobians(v)
