@@ -240,11 +240,6 @@ def test_friction_plot_figure(shared_dir, tmp_path):
 
 # ------------------------------------------------------------------ the diagnosis report
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason="the one exception: the diagnosis report (pneusim/diagnosis/report.py) is being rewritten "
-                          "with the diagnosis; two of its axis labels give no unit ('residual / noise' in "
-                          "residuals.png, 'velocity (mm/s), binned mean' in the evidence figure). Remove this mark "
-                          "when they do (strict: the test fails once the figures pass, so that the mark goes)")
 def test_diagnosis_report_figures(shared_dir, tmp_path):
     """A quick practice2 case (a 0.37 V dead band, the first 30 s: about 30 s to diagnose) with one finding."""
     from pneusim.diagnosis import diagnose, write_report

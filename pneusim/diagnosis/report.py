@@ -90,7 +90,7 @@ def plot_residuals(result: DiagnosisResult, path, noise: dict) -> Path:
             ax.axhline(k, color="0.6", lw=0.5, ls=":")
         _shade(ax, result, name)
         ax.axvline(result.validation["t_start_s"], color="0.4", ls=":", lw=1)
-        ax.set_ylabel(f"{name}\nresidual / noise")
+        ax.set_ylabel(f"{name}\nresidual / noise (-)")
     axes[0, 0].legend(loc="upper right", fontsize=8)
     axes[0, 0].set_title("residuals in units of the sensor noise (dotted: +-3); shaded: mismatch beyond noise",
                          fontsize=9)
@@ -140,13 +140,13 @@ def _binned_residuals(ax, x, residuals, xlabel: str, ylabel: str, title: str) ->
 
 def _plot_direction(ax, result, v, x, e_nom, e_fin, nom, fin):
     _binned_residuals(ax, v * 1e3, [(e_nom * 1e3, "C0", "nominal"), (e_fin * 1e3, "C2", "with findings")],
-                      "measured velocity (mm/s)", "velocity residual (mm/s), binned mean",
+                      "measured velocity (mm/s)", "binned mean velocity residual (mm/s)",
                       "residual against direction of motion")
 
 
 def _plot_position(ax, result, v, x, e_nom, e_fin, nom, fin):
     _binned_residuals(ax, x * 1e3, [(e_nom * 1e3, "C0", "nominal"), (e_fin * 1e3, "C2", "with findings")],
-                      "position (mm)", "velocity residual (mm/s), binned mean", "residual against position")
+                      "position (mm)", "binned mean velocity residual (mm/s)", "residual against position")
 
 
 def _plot_pressure_difference(ax, result, v, x, e_nom, e_fin, nom, fin):
@@ -158,7 +158,7 @@ def _plot_pressure_difference(ax, result, v, x, e_nom, e_fin, nom, fin):
         dp = np.abs(nom["pressure_a_Pa"] - nom["pressure_b_Pa"])
         xlabel = "|p_A - p_B| of the nominal model (bar)"
     residuals = [(np.abs(e_nom) * 1e3, "C0", "nominal"), (np.abs(e_fin) * 1e3, "C2", "with findings")]
-    _binned_residuals(ax, dp * 1e-5, residuals, xlabel, "|velocity residual| (mm/s), binned mean",
+    _binned_residuals(ax, dp * 1e-5, residuals, xlabel, "binned mean |velocity residual| (mm/s)",
                       "residual against the pressure difference across the seal")
 
 
@@ -174,7 +174,7 @@ def _plot_lag(ax, result, v, x, e_nom, e_fin, nom, fin):
         ax.plot(lags * dt * 1e3, cc, "o-", color=c, label=lab, ms=3)
     ax.axhline(0, color="0.5", lw=0.5)
     ax.set_xlabel("lag (ms)")
-    ax.set_ylabel("correlation of command and residual increments")
+    ax.set_ylabel("correlation of command and residual increments (-)")
     ax.set_title("input-residual cross-correlation")
 
 
@@ -188,7 +188,7 @@ def _plot_command_map(ax, result, v, x, e_nom, e_fin, nom, fin):
         ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
     ax.axvline(null, color="0.5", lw=0.5, ls=":")
     ax.set_xlabel("valve command (V)")
-    ax.set_ylabel("velocity (mm/s), binned mean")
+    ax.set_ylabel("binned mean velocity (mm/s)")
     ax.set_title("command-velocity map (mean velocity at each command)")
 
 
