@@ -108,8 +108,8 @@ def nearby_start(theta0: np.ndarray, attempt: int) -> np.ndarray:
 def prediction_error_route(window: ShootingProblem, pb: ShootingProblem, lower, upper, theta0, x_first,
                            rms: float, finish):
     """From the start ``theta0`` (scaled free parameters; ``x_first`` the first state, SI): the prediction-error
-    fit on the pre-fit's ``window`` from the start and, where that does not end at the innovations' noise level,
-    from :data:`~.rules.PREDICTION_ERROR_ATTEMPTS` ``- 1`` nearby starts (:func:`nearby_start`) as far as needed
+    fit on the pre-fit's ``window`` from the start and from up to :data:`~.rules.PREDICTION_ERROR_ATTEMPTS` ``- 1``
+    nearby starts (:func:`nearby_start`) until two agree on the lowest end
     (:func:`.prediction_error.prediction_error_attempts`), the lowest kept; then, from its parameters and first
     state, :func:`tracked_route` on the whole estimation part ``pb`` against the best fit so far (normalised
     residual ``rms``), ``finish`` on its best point.

@@ -187,9 +187,9 @@ CONTRACTION = 0.5
 #: relative size of the deterministic perturbations of a start where a route is chaotic in its start (the
 #: prediction-error fit): far above rounding, far below what changes a parameter's meaning (0103)
 NEARBY_START = 1e-6
-#: starts of the prediction-error fit at most: the start itself, then nearby ones (NEARBY_START) where that does not
-#: reach the innovations' noise level, their broadest stage first and the rest of the schedule from the lowest
-#: landings.  From the data sheet where the filter lands is a draw of the last bits of its arithmetic: a chaotic
+#: starts of the prediction-error fit at most: the start itself, then nearby ones (NEARBY_START), their broadest
+#: stage first and the rest of the schedule from the lowest landings, until two starts agree on the lowest end.
+#: From the data sheet where the filter lands is a draw of the last bits of its arithmetic: a chaotic
 #: recording's landed right from 3 of 10 and 5 of 6 nearby starts under two arithmetic paths (0103)
 PREDICTION_ERROR_ATTEMPTS = 5
 #: rounds of the tracked-starts route at most, each from the last one's point while it lowers the residual (0017)
