@@ -9,38 +9,25 @@
   id: the story is in ``docs/decisions/``.
 """
 
-import ast
-import re
 from pathlib import Path
 
 import pytest
 
 import pneusim.fit as fit
 from pneusim.fit import rules
+from structure_checks import DIARY, assert_small, rule_assignments
 
 PACKAGE = Path(fit.__file__).resolve().parent
 SOLVER = PACKAGE.parent / "solver"
-#: what the common ground's check looks for (STYLE.md: code and comments say what, how and why, never when)
-DIARY = re.compile(r"\b[Ss]tops? [0-9]+\b|\b[Ii]ssues? [0-9]+\b|\b[0-9a-f]{7,40}\b \(|practice[23]?_[0-9]{2}"
-                   r"|\bs10[0-9]{2}\b|\bs50[0-9]{2}\b")
 
 
 @pytest.mark.parametrize("path", sorted(PACKAGE.glob("*.py")), ids=lambda p: p.name)
 def test_no_function_over_80_lines_and_no_module_over_500(path):
-    source = path.read_text(encoding="utf-8")
-    assert len(source.splitlines()) <= 500, f"{path.name}: {len(source.splitlines())} lines"
-    long = [(node.name, node.end_lineno - node.lineno + 1) for node in ast.walk(ast.parse(source))
-            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno + 1 > 80]
-    assert not long, f"{path.name}: functions over 80 lines: {long}"
+    assert_small(path)
 
 
 def test_every_rule_is_a_documented_constant():
-    lines = (PACKAGE / "rules.py").read_text(encoding="utf-8").splitlines()
-    assigned = {}
-    for k, line in enumerate(lines):
-        match = re.match(r"^([A-Z][A-Z0-9_]*) = ", line)
-        if match:
-            assigned[match.group(1)] = k
+    lines, assigned = rule_assignments(PACKAGE / "rules.py")
     assert set(rules.__all__) == set(assigned), set(rules.__all__) ^ set(assigned)
     undocumented = [name for name, k in assigned.items() if not lines[k - 1].startswith("#: ")]
     assert not undocumented, f"rules without a '#:' comment above them: {undocumented}"
