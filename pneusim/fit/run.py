@@ -112,8 +112,10 @@ def stopped_by(res) -> str:
     """How the last optimiser of a fit stopped, in words: Gauss-Newton settling or IPOPT, its status, iterations,
     seconds and formulation.  Only a description: the verdict is the residual's (:class:`.result.FitResult`)."""
     if res.status == "Gauss_Newton_Settled":
-        return (f"settled by Gauss-Newton steps on the constrained problem (largest defect {res.max_defect:.2g}, the "
-                f"next step within a tenth of every standard error; {res.formulation})")
+        rule = ("the residual no longer moving within the scatter of its steps" if "scatter" in res.formulation
+                else "the next step within a tenth of every standard error")
+        return (f"settled by Gauss-Newton steps on the constrained problem (largest defect {res.max_defect:.2g}, "
+                f"{rule}; {res.formulation})")
     return f"IPOPT {res.status} after {res.iterations} iterations ({res.seconds:.1f} s; {res.formulation})"
 
 
