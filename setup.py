@@ -1,7 +1,8 @@
 """Build the compiled helpers: a CVODE driver on CasADi-generated C code with the sample loop
 (``_cvode_compiled``, the simulator; it uses scikits.odes' Cython declarations of SUNDIALS) and a
 CVODES driver with forward sensitivities (``_cvodes_sensitivity``, the fit), and paper 1's RLS
-(``pneusim.online._rls``, the online identifier of the sample loop).
+(``pneusim.online._rls``, the online identifier of the sample loop), and the fit's tracking filter
+(``pneusim.fit._filter``).
 
 scikits.odes ships its Cython declarations (.pxd) but not the small
 ``sundials_config.pxi`` they include; it is regenerated here from the installed
@@ -54,9 +55,13 @@ def extensions():
     # the online RLS of the sample loop (pneusim.online.PaperRLS): plain C, no SUNDIALS
     rls = Extension("pneusim.online._rls", ["pneusim/online/_rls.pyx"], include_dirs=[numpy.get_include()],
                     define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")], extra_compile_args=["-g0"])
+    # the tracking filter's pass (pneusim.fit.tracking.run_filter): plain C around the integrator's Python step
+    tracking_filter = Extension("pneusim.fit._filter", ["pneusim/fit/_filter.pyx"], include_dirs=[numpy.get_include()],
+                                define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
+                                extra_compile_args=["-g0", "-ffp-contract=off"])
     # the fit's CVODES driver with forward sensitivities declares what it uses itself
     return cythonize([solver_extension("_cvode_compiled", "sundials_cvode"),
-                      solver_extension("_cvodes_sensitivity", "sundials_cvodes"), rls], include_path=[str(sundials_config_pxi()), str(odes_root)],
+                      solver_extension("_cvodes_sensitivity", "sundials_cvodes"), rls, tracking_filter], include_path=[str(sundials_config_pxi()), str(odes_root)],
                      compiler_directives={"language_level": 3}, quiet=True, nthreads=2)
 
 

@@ -21,7 +21,8 @@
    other start is tried where it brings the fit to noise;
 4. **rescue routes** — where the best fit still ends above noise, but neither it nor every pre-fit more than
    :data:`.rules.MODEL_SHORT` times above it: segment starts tracked by an extended Kalman filter
-   (:func:`.rescue_routes.tracked_route`, ``solver["tracked_route"]``); where it still ends above noise
+   (:func:`.rescue_routes.tracked_route`, ``solver["tracked_route"]``), from the best fit's point and, until one
+   reaches noise, from the other points the starts reached (:data:`.rules.TRACKED_STARTS`); where it still ends above noise
    (however far) and it has not run yet: the prediction-error fit from the start and from nearby starts until
    two agree on the lowest end (where the filter lands is a draw of the last bits of its arithmetic), then
    those tracked starts (:func:`.rescue_routes.prediction_error_route`, ``solver["prediction_error_route"]``);
@@ -60,8 +61,8 @@ from .rescue_routes import prediction_error_route, short_segments_route, tracked
 from .result import FitResult, ParameterEstimate
 from .run import FitRun, better, normalised_rms, stopped_by
 from .rules import (ABOVE_NOISE_WARNING, IPOPT_MAX_ITER, MODEL_SHORT, PENALTY_WEIGHT, PREFIT_SAMPLES, PREFIT_STARTS,
-                    SAME_PREFIT, SEGMENT_SAMPLES, SHORT_SEGMENTS, START_FACTORS, WARM_CONTINUE_BELOW,
-                    WARM_TOLERANCE)
+                    SAME_PREFIT, SEGMENT_SAMPLES, SHORT_SEGMENTS, START_FACTORS, TRACKED_STARTS,
+                    WARM_CONTINUE_BELOW, WARM_TOLERANCE)
 from .setup import FitSetup, _name
 from .stages import full_fit, prefit, well_above
 from .threads import one_blas_thread
@@ -211,6 +212,7 @@ class PhysicalFit:
             run.say(f"short segments ({SHORT_SEGMENTS} samples): pre-fit {route['rms_short_normalised']:.3g}, then "
                     f"{route['rms_normalised']:.3g} on the pre-fit's segments against {attempt['rms_normalised']:.3g}: "
                     f"{'kept' if route['kept'] else 'not kept'} ({route['seconds']:.1f} s)")
+        run.prefit_points.append((rms_pre, k, pb.split(v_pre)[0]))
         return v_pre, rms_pre
 
     def _whole_fit(self, run: "FitRun", k: int, v_pre, rms_pre: float) -> float:
@@ -312,12 +314,37 @@ class PhysicalFit:
         rms_best = normalised_rms(pb, res)
         if (ABOVE_NOISE_WARNING < rms_best <= MODEL_SHORT
                 and min(a["rms_normalised"] for a in run.attempts) <= MODEL_SHORT):
-            res, run.tracked = better(res, *self.stages.tracked(pb, res.v, lo, hi, rms_best, run.finish))
-            run.say("tracked starts: " + rounds_text(run.tracked) + f" against {rms_best:.3g}: "
-                    f"{'kept' if run.tracked['kept'] else 'not kept'} ({run.tracked['seconds']:.1f} s)")
+            res = self._tracked(run, res, rms_best)
         if normalised_rms(pb, res) > ABOVE_NOISE_WARNING and run.predicted is None:
             res = self._prediction_error(run, res)
         run.window[0].close()
+        return res
+
+    def _tracked(self, run: "FitRun", res, rms_best: float):
+        """The tracked-starts route against the best fit ``res`` (normalised rms ``rms_best``): from its point, then
+        from the other points the starts reached within :data:`.rules.MODEL_SHORT` (each start's pre-fit and
+        fit; their parameters, the filter tracking the states from the best fit's first state), lowest first,
+        :data:`.rules.TRACKED_STARTS` points at most, until one reaches noise; each kept when lower
+        (``docs/decisions/0105``).  Its report goes to ``run.tracked``.  Returns the better fit."""
+        pb, lo, hi = run.pb, run.lo, run.hi
+        theta_best, starts = pb.split(res.v)
+        others = [(rms, k, theta) for rms, k, theta in run.prefit_points]
+        others += [(normalised_rms(pb, fit), k, pb.split(fit.v)[0]) for _, k, fit in run.fits if fit is not res]
+        others = sorted((o for o in others if o[0] <= MODEL_SHORT and not np.array_equal(o[2], theta_best)),
+                        key=lambda o: (o[0], o[1]))
+        points = [(rms_best, res.v)] + [(rms, pb.join(theta, starts)) for rms, _, theta in others]
+        tries, seconds = [], 0.0
+        for rms_from, v in points[:TRACKED_STARTS]:
+            res, info = better(res, *self.stages.tracked(pb, v, lo, hi, rms_best, run.finish))
+            seconds += info["seconds"]
+            tries.append({"from_rms_normalised": rms_from, **info})
+            run.say("tracked starts" + ("" if len(tries) == 1 else f" from a point at {rms_from:.3g}") + ": "
+                    + rounds_text(info) + f" against {rms_best:.3g}: {'kept' if info['kept'] else 'not kept'} "
+                    f"({info['seconds']:.1f} s)")
+            if info["kept"] and normalised_rms(pb, res) <= ABOVE_NOISE_WARNING:
+                break
+        kept = [t for t in tries if t["kept"]]
+        run.tracked = {**(kept[-1] if kept else tries[-1]), "kept": bool(kept), "seconds": seconds, "tries": tries}
         return res
 
     def _prediction_error(self, run: "FitRun", res):

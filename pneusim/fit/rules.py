@@ -26,7 +26,7 @@ __all__ = [
     "WARM_TOLERANCE", "WARM_CONTINUE_BELOW",
     "DEFECT_TOL_PER_RTOL", "ACCEPTABLE_DEFECT_FACTOR", "IPOPT_OBJECTIVE_CHANGE", "GN_DAMPING", "KEEP_CONSTRAINED",
     "GIVE_UP_CLIMB", "GIVE_UP_STALL", "SETTLED_STEP", "SETTLED_STEPS", "OPENED_DEFECTS", "CONTRACTION",
-    "TRACKED_ROUNDS", "PLAUSIBLE_INNOVATIONS", "PROCESS_STD", "FIRST_STATE_STD", "PROCESS_SCHEDULE",
+    "TRACKED_ROUNDS", "TRACKED_STARTS", "PLAUSIBLE_INNOVATIONS", "PROCESS_STD", "FIRST_STATE_STD", "PROCESS_SCHEDULE",
     "PRESSURE_FACTOR", "HELD_BROAD", "HELD_UNTIL", "PREDICTION_ERROR_EVALUATIONS", "PREDICTION_ERROR_TOLERANCE",
     "NEARBY_START", "PREDICTION_ERROR_ATTEMPTS", "SETTLED_NOISE",
 ]
@@ -194,6 +194,12 @@ NEARBY_START = 1e-6
 PREDICTION_ERROR_ATTEMPTS = 5
 #: rounds of the tracked-starts route at most, each from the last one's point while it lowers the residual (0017)
 TRACKED_ROUNDS = 2
+#: points the tracked-starts route is tried from at most: the best fit's, then the other points the starts reached
+#: (their pre-fits and fits within MODEL_SHORT), lowest first, until one reaches noise.  Whether it reaches noise
+#: from a fit still above noise is a draw of where that fit landed: a closed-loop stick-slip recording's fit at
+#: 4.5 times noise under one arithmetic path, 4.8 under another, and the route reached noise from the second
+#: only, and from the first path's second pre-fit (0105)
+TRACKED_STARTS = 3
 #: the prediction-error route goes on to the shooting problem only where the filter's whitened innovations
 #: end at most this many times their noise level: a filter that cannot predict one sample ahead says the
 #: model lacks physics (0018)

@@ -38,6 +38,7 @@ class FitRun:
         self.window_recording = recording
         self.first_at_start = None
         self.attempts, self.fits = [], []
+        self.prefit_points = []   # (normalised rms on the window, start, scaled parameters) of each pre-fit
         self.tracked = self.predicted = None
         self.defect_sum_squares = float("nan")
 

@@ -12,9 +12,11 @@ off) its starts fit no better than the chained ones, so the fitter uses it after
 parameters (:func:`.rescue_routes.tracked_route`; ``docs/decisions/0017``).
 
 The filter's update is the extended Kalman filter's in Joseph form (filterpy's equations, written for
-measurements that read states directly); its prediction is one sample of the fit's own integrator
-(:class:`~pneusim.solver.sensitivity.SensitivitySimulator`, the held command and any transport delay as in the
-fit), linearised by that integrator's state sensitivities.  The same filter
+measurements that read states directly, one value at a time); its prediction is one sample of the fit's own
+integrator (:class:`~pneusim.solver.sensitivity.SensitivitySimulator`, the held command and any transport delay
+as in the fit), linearised by that integrator's state sensitivities.  The pass over the samples is compiled
+(:mod:`._filter`): the same doubles on every processor, whichever kernels OpenBLAS picks, and a quarter to a
+third of the time NumPy's small matrices took (``docs/decisions/0105``).  The same filter
 (:func:`run_filter`) gives the prediction-error fit (:mod:`.prediction_error`) its whitened innovations and
 their fixed-gain Jacobian.
 """
@@ -26,8 +28,9 @@ import numpy as np
 from ..errors import PneusimError
 from ..solver.backends import state_scales
 from ..solver.sensitivity import command_schedule
+from ._filter import filter_pass
 from .rules import FIRST_STATE_STD, PROCESS_STD
-from .shooting import ShootingProblem, expected_position_reading
+from .shooting import ShootingProblem
 
 __all__ = ["filtered_states", "run_filter", "process_std", "first_state_std", "PROCESS_STD"]
 
@@ -81,85 +84,38 @@ def run_filter(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray, proc
     sim, data = pb.sims[0], pb.data
     n, nf = pb.n, pb.n_free
     sim.set_params(pb.params_of(theta))
-    rows = np.array([i for (i, _, _, _, _) in pb.outputs])
-    values = np.column_stack([values for (_, _, values, _, _) in pb.outputs])
-    sigma = np.array([sigma for (_, _, _, sigma, _) in pb.outputs])
-    seen_at = np.column_stack([mask for (_, _, _, _, mask) in pb.outputs])
-    state = {"x": np.asarray(x_first, float).copy(), "P": np.diag(first_state_std(pb) ** 2), "Z": None}
-    Q = np.diag(np.asarray(process, float) ** 2)
+    rows = np.array([i for (i, _, _, _, _) in pb.outputs], dtype=np.int64)
+    values = np.ascontiguousarray(np.column_stack([values for (_, _, values, _, _) in pb.outputs]), dtype=float)
+    sigma = np.array([sigma for (_, _, _, sigma, _) in pb.outputs], dtype=float)
+    seen = np.ascontiguousarray(np.column_stack([mask for (_, _, _, _, mask) in pb.outputs]), dtype=np.uint8)
     x_lo, x_hi = pb.state_bounds()
-    out = np.empty((data.n_samples, n))
-    ok = True
-    if gradients:
-        innovations = np.zeros((data.n_samples, rows.size))
-        jacobian = np.zeros((data.n_samples, rows.size, nf + n))
-        state["Z"] = np.zeros((n, nf + n))   # d x / d (theta, x_first scaled)
-        state["Z"][:, nf:] = np.diag(pb.x_scale)
-    for k in range(data.n_samples):
-        if k > 0:
-            schedule = command_schedule(data.time_s, data.command_V, k - 1, k, pb.delay_s, data.command_before_V)
-            try:
-                xs, S = sim.run(data.time_s[k - 1], state["x"], schedule, 2, True)
-            except PneusimError:
-                xs = None
-            if xs is not None and np.all(np.isfinite(xs[1])):
-                F = S[1][:, nf:nf + n] / pb.x_scale[None, :]     # d x_k / d x_{k-1}: the columns are scaled
-                state["x"] = xs[1]
-                state["P"] = F @ state["P"] @ F.T + Q
-                if gradients:
-                    state["Z"] = F @ state["Z"]
-                    state["Z"][:, :nf] += S[1][:, :nf]
-            else:
-                ok = False
-        seen = seen_at[k]
-        if seen.any():
-            whitened, slopes = _update(pb, state, rows[seen], values[k, seen], sigma[seen])
-            if gradients:
-                innovations[k, seen], jacobian[k, seen] = whitened, slopes
-        state["x"] = np.clip(state["x"], x_lo, x_hi)
-        out[k] = state["x"]
-    result = {"states": out, "ok": ok}
+    states = np.empty((data.n_samples, n))
+    innovations = np.zeros((data.n_samples, rows.size) if gradients else (1, rows.size))
+    jacobian = np.zeros((data.n_samples, rows.size, nf + n) if gradients else (1, rows.size, nf + n))
+    Z0 = np.zeros((n, nf + n))   # d x / d (theta, x_first scaled)
+    Z0[:, nf:] = np.diag(pb.x_scale)
+    ok = filter_pass(sim.step_into, PneusimError, np.ascontiguousarray(data.time_s, dtype=float), _sample_schedules(pb),
+                     np.ascontiguousarray(x_first, dtype=float), np.diag(first_state_std(pb) ** 2), Z0,
+                     np.asarray(process, float) ** 2, 1.0 / pb.x_scale, np.ascontiguousarray(x_lo, dtype=float),
+                     np.ascontiguousarray(x_hi, dtype=float), rows, values, sigma, seen, pb.position_index,
+                     pb.stroke_m, nf, states, innovations, jacobian, gradients)
+    result = {"states": states, "ok": bool(ok)}
     if gradients:
         result["innovations"] = innovations.ravel()
         result["jacobian"] = jacobian.reshape(-1, nf + n)
     return result
 
 
-def _update(pb: ShootingProblem, state: dict, at: np.ndarray, measured: np.ndarray, sigma: np.ndarray):
-    """The filter's measurement update of ``state`` (``x``, ``P`` and, unless None, the sensitivities ``Z``) by
-    the values ``measured`` of states ``at`` (noise std ``sigma``): ``(whitened innovations, their derivative)``
-    (the derivative None without ``Z``).
-
-    The extended Kalman filter's update in Joseph form, ``P = (I - K H) P (I - K H)^T + K R K^T`` (filterpy's),
-    written for measurements that read states directly: each measured value is one state (the position through
-    the saturating sensor's mean reading, :func:`.shooting.expected_position_reading`), so ``H`` is a scaled
-    selection of rows and ``P H^T`` a scaled selection of columns, and one value makes the innovation's
-    covariance a number.  Why not filterpy's object: its bookkeeping of general matrices took a third of a
-    prediction-error fit's time (``docs/decisions/0101``).
-    """
-    x, P, Z = state["x"], state["P"], state["Z"]
-    # the model's readings and their slopes at the predicted state: H = diag(slope) E_at
-    reading, slope = x[at].copy(), np.ones(at.size)
-    p = np.flatnonzero(at == pb.position_index)
-    if p.size:
-        reading[p[0]], slope[p[0]] = expected_position_reading(x[pb.position_index], pb.stroke_m, sigma[p[0]])
-    PHT = P[:, at] * slope                                       # P H^T
-    S = PHT[at] * slope[:, None] + np.diag(sigma ** 2)           # H P H^T + R
-    y = measured - reading
-    if at.size == 1:
-        L = np.sqrt(S)
-        K = PHT / S[0, 0]
-    else:
-        L = np.linalg.cholesky(S)
-        K = np.linalg.solve(S, PHT.T).T                          # P H^T S^-1
-    I_KH = np.eye(x.size)
-    I_KH[:, at] -= K * slope                                     # I - K H
-    state["x"] = x + K @ y
-    state["P"] = I_KH @ P @ I_KH.T + (K * sigma ** 2) @ K.T
-    if Z is None:
-        return None, None
-    HZ = Z[at] * slope[:, None]
-    state["Z"] = Z - K @ HZ
-    if at.size == 1:
-        return y / L[0, 0], -HZ / L[0, 0]
-    return np.linalg.solve(L, y), -np.linalg.solve(L, HZ)
+def _sample_schedules(pb: ShootingProblem) -> list:
+    """Each sample's integration schedule over ``pb``'s window (None for the first): the commands the valve sees
+    from sample ``k - 1`` to ``k`` (:func:`~pneusim.solver.sensitivity.command_schedule`), computed once per
+    problem (they depend on the recording and the delay, not on the parameters)."""
+    cached = getattr(pb, "_filter_schedules", None)
+    if cached is None:
+        data = pb.data
+        cached = [None] + [tuple(np.ascontiguousarray(a) for a in
+                                 command_schedule(data.time_s, data.command_V, k - 1, k, pb.delay_s,
+                                                  data.command_before_V))
+                           for k in range(1, data.n_samples)]
+        pb._filter_schedules = cached
+    return cached

@@ -170,6 +170,20 @@ class SensitivitySimulator:
                               + (f": {message.strip()}" if message else "") + ")")
         return x_out, (s_out if sensitivities else None)
 
+    def step_into(self, t0: float, x0: np.ndarray, schedule, x_out: np.ndarray, s_out: np.ndarray) -> None:
+        """One sample with sensitivities into the caller's buffers: like :meth:`run` with ``n_out = 2``, the state
+        at the sample's end written to ``x_out[1]`` (``x_out`` (2, n)) and its sensitivities to ``s_out[1]``
+        (``s_out`` (2, n, ns)), C-contiguous doubles that the caller reuses from sample to sample.
+
+        Why: the tracking filter takes one sample at a time, thousands per pass; :meth:`run`'s fresh arrays
+        cost as much as the sample's integration."""
+        t_stop, u, out_index = schedule
+        flag, t_reached, message = self._integrator.run(float(t0), x0, self._s0, t_stop, u, out_index, x_out, s_out,
+                                                        True)
+        if flag < 0:
+            raise SolverError(f"CVODES failed at t = {t_reached:.6f} s (flag {flag}"
+                              + (f": {message.strip()}" if message else "") + ")")
+
 
 _KERNELS: dict = {}
 
