@@ -44,7 +44,7 @@ from pneusim.rig import load_rig
 ROOT = Path.cwd() if (Path.cwd() / "scenarios").exists() else Path.cwd().parent
 PRACTICE = ROOT.parent / "shared" / "practice"
 CASE = "practice_21.csv"
-RUN_FULL_DIAGNOSIS = False       # True: run pneusim.diagnosis.diagnose on the same slice (minutes)
+RUN_FULL_DIAGNOSIS = True        # False: stop before pneusim.diagnosis.diagnose on the same slice (about a minute)
 
 if (PRACTICE / CASE).exists():
     rec = read_recording(PRACTICE / CASE)
@@ -151,9 +151,10 @@ print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in signatures.it
 
 # %% [markdown]
 # ## 5. The automatic diagnosis, and the answer
-# With `RUN_FULL_DIAGNOSIS = True` the next cell runs `pneusim.diagnosis.diagnose` on the same slice (the
-# command line equivalent: `pneusim diagnose ../shared/practice/practice_21.csv --report diag`). Then compare
-# what you concluded with `answers.json`.
+# The next cell runs `pneusim.diagnosis.diagnose` on the same slice (about a minute; the command line
+# equivalent: `pneusim diagnose ../shared/practice/practice_21.csv --report diag`): the nominal fit, the
+# candidates screened where the mismatch is, each refitted, the finding kept only where it improves the
+# held-out validation. Then compare what you and it concluded with `answers.json`.
 
 # %%
 if RUN_FULL_DIAGNOSIS:
@@ -161,6 +162,8 @@ if RUN_FULL_DIAGNOSIS:
 
     result = diagnose(rec, rig)
     print(json.dumps(result.to_dict()["findings"], indent=1, default=str))
+    found = [f["effect"] for f in result.to_dict()["findings"]]
+    assert found[:1] == [answer[0]["effect"]], f"the diagnosis named {found}, the answer is {answer}"
 print("the answer:", answer)
 
 # %% [markdown]
