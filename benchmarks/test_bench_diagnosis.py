@@ -33,6 +33,7 @@ other once.
 """
 
 import json
+import math
 import os
 import re
 import statistics
@@ -164,7 +165,8 @@ def _table(s, load, ratio) -> str:
              f"| median validation fit, effect cases without outside physics, final | {s['median_fit_after']:.2f} % |",
              f"| median validation fit, all cases without outside physics, final | {s['median_fit_after_all']:.2f} % |",
              f"| median time per recording | {s['median_seconds']:.0f} s |",
-             f"| worst time (wall), worst CPU time | {s['worst_seconds']:.0f} s, {s['worst_cpu']:.0f} s |",
+             f"| worst time (wall), worst CPU time | {s['worst_seconds']:.0f} s, "
+             + (f"{s['worst_cpu']:.0f} s |" if not math.isnan(s['worst_cpu']) else "- |"),
              f"| median time by stage | {stages or 'n/a'} |",
              f"| median time / median nominal fit time (same run) | {ratio:.1f} |",
              f"| recordings stopped by the time budget | {s['unfinished']} |",

@@ -172,7 +172,7 @@ class Diagnosis:
         """Diagnose ``recording`` (a :class:`~pneusim.recording.Recording` or a path) on ``rig`` (default: the
         recording's ``rig`` metadata); raises :class:`~pneusim.errors.PneusimError` like
         :func:`~pneusim.diagnosis.diagnose`."""
-        started = time.perf_counter()
+        started, cpu_started = time.perf_counter(), time.process_time()
         recording, rig = _load(recording, rig)
         name = _name(recording)
         candidate_list(rig, recording.sample_time_s, self.effects)   # an unknown effect is refused before any work
@@ -209,7 +209,8 @@ class Diagnosis:
             test=keep_test_text(basis.floor, basis.fit0, validation_room(basis.fit0, basis.floor)),
             seconds=time.perf_counter() - started,
             timing={"nominal_fit_s": t_nominal, "screening_s": t_screen,
-                    "refits_s": time.perf_counter() - started - t_nominal - t_screen},
+                    "refits_s": time.perf_counter() - started - t_nominal - t_screen,
+                    "cpu_s": time.process_time() - cpu_started},   # this process's: both fit threads
             nominal_fit=nominal, final_fit=final, signatures=signatures,
             fits={k: v[0] for k, v in run.refits.items()})
         self._say(name, f"findings {', '.join(result.effects) or 'none'}; final fit {final.fit_percent:.2f} % "

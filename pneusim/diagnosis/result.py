@@ -123,7 +123,8 @@ class DiagnosisResult:
     seconds : float
         Wall time of the diagnosis.
     timing : dict
-        ``nominal_fit_s``, ``screening_s``, ``refits_s``: wall time of each stage.
+        ``nominal_fit_s``, ``screening_s``, ``refits_s``: wall time of each stage; ``cpu_s``: the diagnosis's
+        processor time (this process, both fit threads).
     nominal_fit, final_fit : FitResult
         The fits themselves (for plots; not part of the JSON).
     """
