@@ -62,8 +62,9 @@ def filter_pass(step, failure, const double[::1] time_s, list schedules, double[
 
     ``step(t0, x, schedule, x_buffer, s_buffer)`` integrates one sample from ``x`` (raising ``failure`` where it
     cannot), writing the new state to ``x_buffer[1]`` and its sensitivities ``(n, n_free + n)`` to
-    ``s_buffer[1]``, whose state columns are scaled (``inverse_scale``, ``1 / x_scale``, undoes it).  ``P0``, ``Z0``: the first state's covariance and sensitivities (``Z0`` unused
-    without ``gradients``); ``process_var``: the process noise variance per state.  ``at``, ``values`` (N, m),
+    ``s_buffer[1]``, whose state columns are scaled (``inverse_scale``, ``1 / x_scale``, undoes it).  ``P0``,
+    ``Z0``: the first state's covariance and sensitivities (``Z0`` unused without ``gradients``);
+    ``process_var``: the process noise variance per state.  ``at``, ``values`` (N, m),
     ``sigma``, ``seen`` (N, m): the measured states, their values, noise std and where they exist.  Writes the
     filtered states to ``states`` (N, n); with ``gradients`` the whitened innovations to ``innovations`` (N, m)
     and their derivative to ``jacobian`` (N, m, n_free + n), zero where a value is missing.

@@ -22,11 +22,11 @@
 4. **rescue routes** — where the best fit still ends above noise, but neither it nor every pre-fit more than
    :data:`.rules.MODEL_SHORT` times above it: segment starts tracked by an extended Kalman filter
    (:func:`.rescue_routes.tracked_route`, ``solver["tracked_route"]``), from the best fit's point and, until one
-   reaches noise, from the other points the starts reached (:data:`.rules.TRACKED_STARTS`); where it still ends above noise
-   (however far) and it has not run yet: the prediction-error fit from the start and from nearby starts until
-   two agree on the lowest end (where the filter lands is a draw of the last bits of its arithmetic), then
-   those tracked starts (:func:`.rescue_routes.prediction_error_route`, ``solver["prediction_error_route"]``);
-   each kept when lower.  A route's fit is finished on the exact
+   reaches noise, from the other points the starts reached (:data:`.rules.TRACKED_STARTS`); where it still ends
+   above noise (however far) and it has not run yet: the prediction-error fit from the start and from nearby
+   starts until two agree on the lowest end (where the filter lands is a draw of the last bits of its
+   arithmetic), then those tracked starts (:func:`.rescue_routes.prediction_error_route`,
+   ``solver["prediction_error_route"]``); each kept when lower.  A route's fit is finished on the exact
    problem by Gauss-Newton settling where it ends at noise, else by IPOPT (:meth:`.run.FitRun.finish`);
 5. **uncertainty** — the Gauss-Newton covariance of the estimates with the segment states as nuisance
    parameters, each signal weighted by its residual standard deviation (:mod:`.uncertainty`);
