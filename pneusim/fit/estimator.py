@@ -328,8 +328,8 @@ class PhysicalFit:
         (``docs/decisions/0105``).  Its report goes to ``run.tracked``.  Returns the better fit."""
         pb, lo, hi = run.pb, run.lo, run.hi
         theta_best, starts = pb.split(res.v)
-        others = [(rms, k, theta) for rms, k, theta in run.prefit_points]
-        others += [(normalised_rms(pb, fit), k, pb.split(fit.v)[0]) for _, k, fit in run.fits if fit is not res]
+        others = run.prefit_points + [(normalised_rms(pb, fit), k, pb.split(fit.v)[0])
+                                      for _, k, fit in run.fits if fit is not res]
         others = sorted((o for o in others if o[0] <= MODEL_SHORT and not np.array_equal(o[2], theta_best)),
                         key=lambda o: (o[0], o[1]))
         points = [(rms_best, res.v)] + [(rms, pb.join(theta, starts)) for rms, _, theta in others]
