@@ -9,14 +9,15 @@ from __future__ import annotations
 
 from .estimator import Diagnosis
 from .result import DiagnosisResult
-from .rules import MAX_FINDINGS, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, VALIDATION_FRACTION
+from .rules import MAX_FINDINGS, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, TIME_BUDGET_S, VALIDATION_FRACTION
 
 __all__ = ["diagnose", "MIN_SAMPLES"]
 
 
 def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = VALIDATION_FRACTION,
              max_refits: int = MAX_REFITS, max_lookalikes: int = MAX_LOOKALIKES, max_findings: int = MAX_FINDINGS,
-             screen_samples: int | None = None, progress: bool = False) -> DiagnosisResult:
+             screen_samples: int | None = None, progress: bool = False,
+             time_budget_s: float = TIME_BUDGET_S) -> DiagnosisResult:
     """Diagnose what physics the nominal model leaves out of ``recording``.
 
     Parameters
@@ -40,6 +41,9 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
         Estimation samples the screening uses (default :data:`.rules.SCREEN_SAMPLES`).
     progress : bool
         Print one line per stage to standard error.
+    time_budget_s : float
+        Processor seconds the diagnosis may take (:data:`.rules.TIME_BUDGET_S`): no fit that would end past it
+        is started, and the result (``status``) says which step was refused; ``math.inf`` for no limit.
 
     Returns
     -------
@@ -54,4 +58,4 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     """
     return Diagnosis(effects=effects, validation_fraction=validation_fraction, max_refits=max_refits,
                      max_lookalikes=max_lookalikes, max_findings=max_findings, screen_samples=screen_samples,
-                     progress=progress).fit(recording, rig)
+                     progress=progress, time_budget_s=time_budget_s).fit(recording, rig)

@@ -18,9 +18,16 @@
    by more than noise explains);
 6. **delay scan** (:mod:`.delay`) -- a kept transport delay that leads, or comes close, estimated by refits
    (a delay has no gradient);
-7. **findings** (:mod:`.findings`) -- the kept candidate with the best validation fit first, and a second
-   effect on top of it;
-8. **other** -- with nothing kept, an ``other`` finding where the nominal residual stays well above noise.
+7. **findings** (:mod:`.findings`) -- the kept candidate with the best validation fit first, then more effects
+   on top of it, one at a time, each screened and tested with the findings before it present;
+8. **drop-one** (:func:`.findings.drop_one`) -- each finding tested with all the others present, a look-alike
+   that only helped while something else was missing dropped;
+9. **other** (:mod:`.other`) -- where the model with every finding (the nominal model where there is none) still
+   leaves a residual well above noise, an ``other`` finding: where, under which conditions, what it looks like,
+   and which vocabulary effects came closest and why they failed.
+
+Every fit and screening after the nominal fit first asks the time budget (:mod:`.budget`): one that would end
+past it is not started, and the diagnosis returns what it has, its ``status`` naming the step refused.
 
 Each step is a field of :class:`DiagnosisStages`, and so are the fits, screenings and the keep test the
 steps call; a step reads and writes one :class:`~.run.DiagnosisRun`.  The thresholds are in :mod:`.rules`.
@@ -39,6 +46,7 @@ import numpy as np
 
 from ..errors import FitError, PneusimError
 from ..fit import prefit_recording
+from ..fit.deadline import cpu_deadline
 from ..fit.setup import rig_of
 from ..fit.threads import one_blas_thread
 from ..recording import Recording, read_recording
@@ -46,13 +54,15 @@ from ..rig import Rig
 from .around_nominal import confirm_around_nominal, screen_around_nominal
 from .candidates import candidate_list, polished_costs, screen
 from .delay import scan_kept_delay, screened_delays
-from .findings import add_findings, other_finding
-from .from_data_sheet import confirm_from_data_sheet, mismatch_window, screen_from_data_sheet
-from .locate import locate_mismatch, named_states
+from .budget import Budget, gated_stages
+from .findings import add_findings, drop_one
+from .from_data_sheet import confirm_from_data_sheet, mismatch_window, one_start_each, screen_from_data_sheet
+from .locate import episodes, locate_mismatch, named_states
+from .other import other_finding
 from .refits import estimation_cost, fit_from_data_sheet, fit_nominal, noise_levels, refit
 from .result import DiagnosisResult
 from .rules import (MAX_FINDINGS, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, MODEL_SHORT, SCREEN_SAMPLES,
-                    VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE, VALIDATION_MOTION_NOISE, WINDOW_SAMPLES,
+                    TIME_BUDGET_S, VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE, VALIDATION_MOTION_NOISE, WINDOW_SAMPLES,
                     keep_test_text, noise_floor_points, passes_test, screening_route, validation_room)
 from .run import DiagnosisRun, NominalBaseline
 from .signatures import compute_signatures
@@ -74,7 +84,8 @@ class DiagnosisStages:
     screen_from_data_sheet, confirm_from_data_sheet : far above noise (:mod:`.from_data_sheet`)
     delay_scan : ``(run) -> None`` (:func:`.delay.scan_kept_delay`)
     findings : ``(run, kept) -> (findings, final fit)`` (:func:`.findings.add_findings`)
-    other : ``(nominal, noise, windows) -> Finding or None`` (:func:`.findings.other_finding`)
+    drop_one : ``(run, findings, final fit) -> (findings, final fit)`` (:func:`.findings.drop_one`)
+    other : ``(run, final fit, duration_s, search_ended) -> Finding or None`` (:func:`.other.other_finding`)
 
     What the steps call:
 
@@ -96,6 +107,7 @@ class DiagnosisStages:
     confirm_from_data_sheet: Callable = confirm_from_data_sheet
     delay_scan: Callable = scan_kept_delay
     findings: Callable = add_findings
+    drop_one: Callable = drop_one
     other: Callable = other_finding
     screen: Callable = screen
     polished_costs: Callable = polished_costs
@@ -139,6 +151,23 @@ def _check_input(recording: Recording, rig: Rig, validation_fraction: float) -> 
     return n_est
 
 
+def _on_top(candidates: list, variants: dict) -> dict:
+    """The candidates a search on top of the findings screens, by label: each screened effect's best variant,
+    and every data-sheet start of an effect the first round did not screen (:func:`.from_data_sheet.one_start_each`)."""
+    out = {c.label: c for _, c, _ in variants.values()}
+    out.update({c.label: c for c in one_start_each(candidates) if c.name not in variants})
+    return out
+
+
+def _search_ended(budget: Budget, findings: list, kept: list, max_findings: int) -> str | None:
+    """Why no more vocabulary effects were added, in words (for the ``other`` finding); None where the search
+    did not end because nothing passed the test -- the time budget stopped it, or ``max_findings`` were
+    modelled -- and what is left is then not known to be outside the vocabulary."""
+    if budget.stopped is not None or len(findings) >= max_findings:
+        return None
+    return "no vocabulary effect passed the test" + (" on top of the findings" if kept else "")
+
+
 def _ranking(ranked: list, variants: dict) -> str:
     return ", ".join(f"{k} ({variants[k][0]:.0f})" for k in ranked[:5])
 
@@ -157,9 +186,10 @@ class Diagnosis:
 
     def __init__(self, *, effects=None, validation_fraction: float = VALIDATION_FRACTION,
                  max_refits: int = MAX_REFITS, max_lookalikes: int = MAX_LOOKALIKES, max_findings: int = MAX_FINDINGS,
-                 screen_samples: int | None = None, progress: bool = False,
+                 screen_samples: int | None = None, progress: bool = False, time_budget_s: float = TIME_BUDGET_S,
                  stages: DiagnosisStages = DiagnosisStages()):
         self.effects, self.validation_fraction = effects, validation_fraction
+        self.time_budget_s = time_budget_s
         self.max_refits, self.max_lookalikes, self.max_findings = max_refits, max_lookalikes, max_findings
         self.screen_samples, self.progress, self.stages = screen_samples, progress, stages
 
@@ -173,12 +203,14 @@ class Diagnosis:
         recording's ``rig`` metadata); raises :class:`~pneusim.errors.PneusimError` like
         :func:`~pneusim.diagnosis.diagnose`."""
         started, cpu_started = time.perf_counter(), time.process_time()
+        budget = Budget(self.time_budget_s)
         recording, rig = _load(recording, rig)
         name = _name(recording)
         candidate_list(rig, recording.sample_time_s, self.effects)   # an unknown effect is refused before any work
         _check_input(recording, rig, self.validation_fraction)
-        nominal = self._nominal_fit(recording, rig, name)                                     # 1. nominal fit
+        nominal = self._nominal_fit(recording, rig, name, budget)                             # 1. nominal fit
         t_nominal = time.perf_counter() - started
+        stages = gated_stages(self.stages, budget, budget.used())
         noise = noise_levels(recording, nominal.rig)
         states = named_states(nominal)
         windows, _ = self.stages.locate(recording, nominal.rig, states, noise)                # 2. locate
@@ -187,17 +219,23 @@ class Diagnosis:
                                     screened_delays(signatures, recording.sample_time_s))
         self._say(name, f"nominal validation fit {nominal.fit_percent:.2f} %, {len(windows)} mismatch window(s); "
                         f"screening {len(candidates)} candidates")
-        run = self._run(recording, nominal, noise, name)
+        run = self._run(recording, nominal, noise, name, stages)
         t_started = time.perf_counter()
         route, ranked, variants, measure = self._screen(run, candidates, signatures)         # 4. screen
         t_screen = time.perf_counter() - t_started
+        run.on_top = _on_top(candidates, variants)
         self._confirm(run, route, ranked, variants, measure)                                  # 5. confirm
-        self.stages.delay_scan(run)                                                           # 6. delay scan
+        stages.delay_scan(run)                                                                # 6. delay scan
+        t_first = time.perf_counter()
         kept = run.kept_by_fit()
-        findings, final = self.stages.findings(run, kept) if kept else ([], nominal)          # 7. findings
-        if not findings:                                                                      # 8. other
-            other = self.stages.other(nominal, noise, windows)
-            findings += [other] if other is not None else []
+        findings, final = stages.findings(run, kept) if kept else ([], nominal)               # 7. findings
+        t_on_top = time.perf_counter()
+        findings, final = stages.drop_one(run, findings, final)                               # 8. drop-one
+        t_drop_one = time.perf_counter()
+        duration_s = float(recording.time_s[-1] - recording.time_s[0])
+        ended = _search_ended(budget, findings, kept, self.max_findings)
+        other = stages.other(run, final, duration_s, ended) if ended is not None else None   # 9. other
+        findings += [other] if other is not None else []
         basis = run.baseline
         result = DiagnosisResult(
             recording=name, rig=nominal.rig.name,
@@ -205,11 +243,15 @@ class Diagnosis:
                         "t_end_s": float(recording.time_s[-1])},
             nominal={"fit_percent": basis.fit0, "parameters": nominal.estimates},
             mismatch=windows, findings=findings, final_fit_percent=final.fit_percent,
-            candidates=[run.trials[k] for k in ranked],
+            final_parameters={k: final.estimates[k] for k in nominal.estimates if k in final.estimates},
+            episodes=episodes(windows, duration_s), status=budget.status,
+            candidates=[run.trials[k] for k in ranked] + [t for k, t in run.trials.items() if k not in ranked],
             test=keep_test_text(basis.floor, basis.fit0, validation_room(basis.fit0, basis.floor)),
             seconds=time.perf_counter() - started,
             timing={"nominal_fit_s": t_nominal, "screening_s": t_screen,
                     "refits_s": time.perf_counter() - started - t_nominal - t_screen,
+                    "first_finding_s": t_first - t_started - t_screen, "on_top_s": t_on_top - t_first,
+                    "drop_one_s": t_drop_one - t_on_top,
                     "cpu_s": time.process_time() - cpu_started},   # this process's: both fit threads
             nominal_fit=nominal, final_fit=final, signatures=signatures,
             fits={k: v[0] for k, v in run.refits.items()})
@@ -217,22 +259,27 @@ class Diagnosis:
                         f"({result.seconds:.0f} s)")
         return result
 
-    def _nominal_fit(self, recording, rig, name: str):
-        """1. The nominal fit (``stages.nominal_fit``); a recording it cannot start on is refused in one sentence."""
+    def _nominal_fit(self, recording, rig, name: str, budget: Budget):
+        """1. The nominal fit (``stages.nominal_fit``); a recording it cannot start on, or whose nominal fit
+        alone runs past the time budget (nothing can be judged without it), is refused in one sentence."""
         self._say(name, "nominal fit")
-        try:
-            return self.stages.nominal_fit(recording, rig, self.validation_fraction)
-        except PneusimError as exc:
-            raise FitError(f"{name}: the nominal fit failed on this recording: {exc}") from None
+        with cpu_deadline(budget.started + budget.seconds) as deadline:
+            try:
+                return self.stages.nominal_fit(recording, rig, self.validation_fraction)
+            except PneusimError as exc:
+                if deadline.reached:
+                    raise FitError(f"{name}: the nominal fit alone ran past the diagnosis's time budget of "
+                                   f"{budget.seconds:.0f} s of processor time (give a larger --time-budget)") from None
+                raise FitError(f"{name}: the nominal fit failed on this recording: {exc}") from None
 
-    def _run(self, recording, nominal, noise: dict, name: str) -> DiagnosisRun:
+    def _run(self, recording, nominal, noise: dict, name: str, stages) -> DiagnosisRun:
         """The run every later step reads and writes, with the nominal baseline the keep test compares with."""
         cost0, n_res = estimation_cost(nominal, noise)
         floor = noise_floor_points(recording, nominal.n_estimation, noise)
         n_screen = (min(nominal.n_estimation, self.screen_samples or SCREEN_SAMPLES)
                     * (3 if recording.has_pressures else 1))
         basis = NominalBaseline(noise, cost0, n_res, nominal.fit_percent, floor, self.validation_fraction, nominal)
-        return DiagnosisRun(recording, nominal.rig, basis, self.stages, max_refits=self.max_refits,
+        return DiagnosisRun(recording, nominal.rig, basis, stages, max_refits=self.max_refits,
                             max_lookalikes=self.max_lookalikes, max_findings=self.max_findings,
                             screen_samples=self.screen_samples, n_screen=n_screen,
                             say=lambda message: self._say(name, message))

@@ -1,6 +1,7 @@
-"""The findings of a diagnosis: the kept candidate with the best validation fit first, then a second effect
-on top of it (:func:`add_findings`), each with its parameters as a user compares them with a data sheet; or,
-with nothing kept, the ``other`` finding (:func:`other_finding`).
+"""The findings of a diagnosis: the kept candidate with the best validation fit first, then more effects on
+top of it, one at a time (:func:`add_findings`), each with its parameters as a user compares them with a data
+sheet; then each finding tested with the others present (:func:`drop_one`).  What the findings leave
+unexplained is :mod:`.other`'s.
 """
 
 from __future__ import annotations
@@ -12,73 +13,98 @@ from ..model.effects import EFFECTS
 from .from_data_sheet import data_sheet_start
 from .refits import effect_at_screened, effect_parameters, estimation_cost
 from .result import CandidateTrial, Finding
-from .rules import MIN_EXPLAINED, MODEL_SHORT, ON_TOP_REFITS, OTHER_RESIDUAL, bic_penalty, is_solver_failure
+from .rules import MIN_EXPLAINED, MODEL_SHORT, ON_TOP_REFITS, bic_penalty, is_solver_failure
 
-__all__ = ["add_findings", "other_finding", "ON_TOP_REFITS"]
+__all__ = ["add_findings", "drop_one", "ON_TOP_REFITS"]
 
 
 def add_findings(run, kept: list) -> tuple[list, object]:
-    """The first finding (the kept candidate with the best validation fit, ``kept[0]``) and a second effect on
-    top of it; returns ``(findings, final fit)``.
+    """The first finding (the kept candidate with the best validation fit, ``kept[0]``) and more effects on top
+    of it, one at a time; returns ``(findings, final fit)``.
 
-    The other kept candidates, and those of ``run.second_only`` (not fitted alone), are all screened on top of
-    the first finding's fit; the one that explains most of the residual there is refitted together with it
-    while it explains at least :data:`~.rules.MIN_EXPLAINED` of it (at most :data:`~.rules.ON_TOP_REFITS`
-    refits, the rest screened again whenever the findings' fit changes), and kept when it passes the keep test
-    against the findings before it (and against those refitted alone: :func:`_second_effect_needed`).
-    ``run.trials`` are updated in place.
+    Every candidate not yet a finding (the other kept ones, those of ``run.second_only`` and of
+    ``run.on_top``: the vocabulary's variants the first round did not fit) is screened on top of the findings'
+    fit; the one that explains most of the residual there is refitted together with them while it explains at
+    least :data:`~.rules.MIN_EXPLAINED` of it (at most :data:`~.rules.ON_TOP_REFITS` refits on top of each set
+    of findings), and kept when it passes the keep test against the findings before it (and against those
+    refitted alone: :func:`_second_effect_needed`).  Once one is kept, the rest are screened again on top of the
+    new findings, up to ``run.max_findings``.  ``run.trials`` are updated in place (a trial is added for a
+    candidate the first round did not screen).
 
-    Why by the screening on top, not by the fit alone: once the first finding is in, what a second effect
-    must explain is the first finding's residual, and a candidate that fitted well alone often explained
-    the same as the first, while a true second effect that fitted badly alone was never tried
+    Why by the screening on top, not by the fit alone: once the first finding is in, what a further effect
+    must explain is the findings' residual, and a candidate that fitted well alone often explained the same as
+    the first, while a true second effect that fitted badly alone, or was never fitted, would not be tried
     (``docs/decisions/0032``)."""
     first = kept[0]
     final = run.refits[first][0]
     findings = [_finding(first, final, run.baseline.fit0, run.trials[first])]
     pool = {eff: run.refits[eff][1] for eff in kept[1:]}
     pool.update(run.second_only)
-    scores: dict = {}   # {effect: (gain, score)} on top of the current findings, against base_top
-    tried_on_top = 0
+    for label, c in run.on_top.items():
+        if c.name != first and c.name not in pool and label not in pool:
+            pool[label] = c
     while pool and len(findings) < run.max_findings:
-        if tried_on_top >= ON_TOP_REFITS:
-            for rest in pool:
-                run.trials[rest].status += (f"; not refitted on top of {first} (the {ON_TOP_REFITS} that explained "
-                                            "most there were)")
-                run.trials[rest].kept = False
+        added, final = _one_more(run, findings, final, pool)
+        if not added:
             break
-        if not scores:
-            base_top, scores = _screen_on_top(run, final, pool)
-        eff = max(pool, key=lambda k: scores[k][1])
-        gain, score_top = scores[eff]
+    return findings, final
+
+
+def _trial_of(run, c):
+    """The candidate's trial, added for one the first round did not screen."""
+    if c.name not in run.trials:
+        run.trials[c.name] = CandidateTrial(c.name, math.nan, "not screened alone: screened on top of the findings")
+    return run.trials[c.name]
+
+
+def _one_more(run, findings: list, final, pool: dict) -> tuple[bool, object]:
+    """Screen ``pool`` on top of ``final`` and refit the candidates that explain most there, at most
+    :data:`~.rules.ON_TOP_REFITS`; the first that passes becomes a finding.  Returns ``(added, final)``;
+    ``pool`` loses the candidates refitted and, once one is kept, every variant of its effect."""
+    names = ", ".join(f.effect for f in findings)
+    base_top, scores = _screen_on_top(run, final, pool)
+    for _ in range(ON_TOP_REFITS):
+        if not pool:
+            break
+        key = max(pool, key=lambda k: scores[k][1])
+        gain, score_top, _ = scores[key]
         if math.isfinite(gain) and not score_top > MIN_EXPLAINED * base_top:
-            for rest in pool:
-                run.trials[rest].status += (f"; on top of {first}: screening explains {scores[rest][0]:.0f} of "
-                                            f"{base_top:.0f} (score {scores[rest][1]:.0f} <= {MIN_EXPLAINED:g} of "
-                                            "it): not refitted")
-                run.trials[rest].kept = False
             break
-        c = pool.pop(eff)
-        tried_on_top += 1
+        c = pool.pop(key)
         screened = f" (screening explains {gain:.0f} of {base_top:.0f} there)" if math.isfinite(gain) else ""
-        tried = _refit_on_top(run, first, final, eff, c, screened)
+        tried = _refit_on_top(run, names, final, c, screened, scores[key][2])
         if tried is None:
             continue
         ok, fit2, c_prev, c2 = tried
         if ok:
             previous = final
-            ok, final = _second_effect_needed(run, final, c_prev, fit2, c2, eff, c.n_added, findings)
+            ok, final = _second_effect_needed(run, final, c_prev, fit2, c2, c.name, c.n_added, findings)
             if final is not previous:
-                scores = {}   # the rest are screened again on top of the better optimum
+                base_top, scores = _screen_on_top(run, final, pool)   # the rest, on top of the better optimum
         if ok:
-            run.trials[eff].kept = True
-            findings.append(_finding(eff, fit2, final.fit_percent, run.trials[eff]))
-            final = fit2
-    return findings, final
+            run.trials[c.name].kept = True
+            findings.append(_finding(c.name, fit2, final.fit_percent, run.trials[c.name]))
+            for other_key in [k for k, v in pool.items() if v.name == c.name]:
+                pool.pop(other_key)
+            return True, fit2
+    found = {f.effect for f in findings}
+    for key, c in pool.items():
+        trial = _trial_of(run, c)
+        if c.name not in found:
+            trial.kept = False
+            gain = scores.get(key, (math.nan,))[0]
+            if not (math.isfinite(gain) and math.isfinite(base_top)):
+                trial.status += f"; not screened on top of {names} (the screening failed or was not started)"
+                continue
+            trial.status += (f"; not refitted on top of {names}: its screening explains {gain:.0f} of "
+                             f"{base_top:.0f} there (at most {ON_TOP_REFITS} are refitted on top, those that "
+                             f"explain most and at least {MIN_EXPLAINED:g} of it)")
+    return False, final
 
 
 def _screen_on_top(run, final, pool: dict) -> tuple[float, dict]:
     """What each candidate of ``pool`` still explains once the findings (``final``) are in: ``(base_top,
-    {effect: (gain, score)})``, ``base_top`` the findings' own cost on the screening window.
+    {key: (gain, score, screening)})``, ``base_top`` the findings' own cost on the screening window.
 
     A refit on top costs as much as the first; look-alikes of the first usually explain nothing more.  From
     the findings' own cost, not from where the same steps take it without a candidate (as around the nominal
@@ -94,26 +120,30 @@ def _screen_on_top(run, final, pool: dict) -> tuple[float, dict]:
             raise
         base_top = math.nan
     scores = {}
-    for eff, c in pool.items():
-        gain = math.inf
+    for key, c in pool.items():
+        gain, screened = math.inf, None
         if math.isfinite(base_top):
             try:
-                gain = base_top - run.stages.screen(final, run.recording, c, run.noise, run.screen_samples)["cost"]
+                screened = run.stages.screen(final, run.recording, c, run.noise, run.screen_samples)
+                gain = base_top - screened["cost"]
             except Exception as exc:  # noqa: BLE001
                 if not is_solver_failure(exc):
                     raise
-        scores[eff] = (gain, gain - bic_penalty(c.n_added, max(run.n_screen, 2)))
+        scores[key] = (gain, gain - bic_penalty(c.n_added, max(run.n_screen, 2)), screened)
     return base_top, scores
 
 
-def _refit_on_top(run, first: str, final, eff: str, c, screened: str):
-    """Refit the findings so far (``final``) with ``eff`` on top, warm from them, and apply the keep test
-    against them; where that fails and the findings' fit ends more than :data:`~.rules.MODEL_SHORT` times above
-    noise, both fitted from the data sheet are tested instead.  Returns ``(kept, fit, cost before, cost
-    after)``, or None when the refit failed (the trial says why)."""
-    trial, basis = run.trials[eff], run.baseline
-    effect = effect_at_screened(c, {"parameters": trial.parameters})
-    run.say(f"refit with {first} and {eff}")
+def _refit_on_top(run, first: str, final, c, screened: str, screening: dict | None = None):
+    """Refit the findings so far (``final``, named ``first``) with candidate ``c`` on top, warm from them (the
+    candidate at its values screened on top, ``screening``, or else those of its first screening), and apply
+    the keep test against them; where that fails and the findings' fit ends more than
+    :data:`~.rules.MODEL_SHORT` times above noise, all fitted from the data sheet are tested instead.  Returns
+    ``(kept, fit, cost before, cost after)``, or None when the refit failed (the trial says why)."""
+    eff = c.name
+    trial, basis = _trial_of(run, c), run.baseline
+    effect = effect_at_screened(c, screening if screening and screening.get("parameters") else
+                                {"parameters": trial.parameters})
+    run.say(f"refit with {first} and {c.label}")
     trial.kept, trial.refitted = False, True
     started = time.perf_counter()
     try:
@@ -131,7 +161,7 @@ def _refit_on_top(run, first: str, final, eff: str, c, screened: str):
                                          fit2.fit_percent, basis.floor)
     trial.status += f"; on top of {first}{screened}: {reason}"
     if not ok and math.sqrt(c_prev / max(basis.n_residuals, 1)) > MODEL_SHORT:
-        both = _on_top_from_data_sheet(run, final, c, trial)
+        both = _on_top_from_data_sheet(run, final, c, trial, effect)
         if both is not None:
             fit2, c2 = both
             ok, _, reason = run.stages.keep_test(c_prev, c2, basis.n_residuals, c.n_added, final.fit_percent,
@@ -140,7 +170,7 @@ def _refit_on_top(run, first: str, final, eff: str, c, screened: str):
     return ok, fit2, c_prev, c2
 
 
-def _on_top_from_data_sheet(run, final, c, trial):
+def _on_top_from_data_sheet(run, final, c, trial, effect=None):
     """Fit the findings so far (``final``'s effects, at their fitted values) and candidate ``c`` (at its own
     start) together from the data sheet (``run.stages.fit``); returns ``(fit, estimation cost)``, or None when
     the fit fails.
@@ -152,7 +182,7 @@ def _on_top_from_data_sheet(run, final, c, trial):
     run.say(f"refit with {', '.join(e.name for e in final.effects_)} and {c.name} from the data sheet")
     started = time.perf_counter()
     try:
-        fit2 = run.stages.fit(run.recording, run.rig, list(final.effects_) + [c.effect],
+        fit2 = run.stages.fit(run.recording, run.rig, list(final.effects_) + [effect or c.effect],
                               run.baseline.validation_fraction, data_sheet_start(run.rig, c))
     except Exception as exc:  # noqa: BLE001 - a failed fit is reported in the result
         if not is_solver_failure(exc):
@@ -205,31 +235,6 @@ def _second_effect_needed(run, final, cost_final: float, fit2, cost2: float, eff
     return False, alone
 
 
-def other_finding(nominal, noise: dict, windows) -> Finding | None:
-    """The ``other`` finding where nothing of the vocabulary was kept: the nominal fit's residuals on its
-    estimation part above :data:`~.rules.OTHER_RESIDUAL` times the sensor noise, in mismatch windows; else None.
-
-    The residuals alone, without the continuity defects a fit that ended in the penalty form left open (those
-    count in the keep test's costs, see :func:`.refits.estimation_cost`): the defects' weight is the penalty's,
-    not a multiple of the noise, and they say the optimiser stopped short, not that physics is missing; a
-    control whose residuals end near the noise would otherwise be reported as ``other``
-    (``docs/decisions/0031``)."""
-    cost, count = estimation_cost(nominal, noise, defects=False)
-    ratio = math.sqrt(cost / max(count, 1))
-    if not (ratio > OTHER_RESIDUAL and windows):
-        return None
-    conditions = {}
-    for w in windows:
-        conditions[w.condition] = conditions.get(w.condition, 0.0) + (w.t_end_s - w.t_start_s)
-    where = max(conditions, key=conditions.get)
-    return Finding(
-        effect="other",
-        evidence=(f"the fitted nominal model leaves a residual of {ratio:.1f} times the sensor noise on the "
-                  f"estimation part, in {len(windows)} window(s), longest in '{where}'; no vocabulary effect "
-                  "passed the test (see the candidates)"),
-        parameters={}, fit_percent=nominal.fit_percent, improvement_points=0.0)
-
-
 def _finding(eff: str, fit, fit_before: float, trial: CandidateTrial) -> Finding:
     values, errors = effect_parameters(fit, eff)
     return Finding(effect=eff, evidence=trial.evidence + f"; refit: {trial.status}",
@@ -245,3 +250,66 @@ def _derived(name: str, values: dict, fit) -> dict:
         return dict(values)
     est = fit.estimates
     return cls.derived_parameters(values, lambda key: est.get(key, fit.rig_.params[key]))
+
+
+def drop_one(run, findings: list, final) -> tuple[list, object]:
+    """Each finding tested with the others present: the findings' fit without it (refitted warm from ``final``)
+    against the fit with all, by the keep test; a finding that fails is dropped (the one that adds least
+    first, then the rest tested again) and the fit without it becomes the final fit.  Returns ``(findings,
+    final)``, each finding's parameters those of the final fit, where all are fitted together.
+
+    Why: a finding kept on top of the first may only have helped because another effect was still missing, and
+    an early finding may be a look-alike the later ones make redundant; only the test with every other finding
+    present tells (``diagnosis.md``: a finding that only helps because another one is missing is dropped).
+    With one finding the keep test against the nominal model was that test."""
+    basis = run.baseline
+    while len(findings) >= 2:
+        c_final, _ = estimation_cost(final, run.noise)
+        tests = []
+        for f in findings:
+            others = [e for e in final.effects_ if e.name != f.effect]
+            run.say(f"drop-one: the findings without {f.effect}")
+            started = time.perf_counter()
+            try:
+                without = run.stages.refit(run.recording, run.rig, others, final)
+            except Exception as exc:  # noqa: BLE001 - an untested finding stays
+                if not is_solver_failure(exc):
+                    raise
+                run.trials[f.effect].status += f"; drop-one: the fit without it failed ({exc}): kept"
+                continue
+            finally:
+                run.trials[f.effect].seconds = (run.trials[f.effect].seconds or 0.0) + time.perf_counter() - started
+            c_without, _ = estimation_cost(without, run.noise)
+            k = _added_parameters(final, f.effect)
+            ok, _, reason = run.stages.keep_test(c_without, c_final, basis.n_residuals, k, without.fit_percent,
+                                                 final.fit_percent, basis.floor)
+            run.trials[f.effect].status += (f"; drop-one, with {', '.join(e.name for e in others) or 'nothing'} "
+                                            f"present (validation {without.fit_percent:.2f} % without it): {reason}")
+            tests.append((ok, final.fit_percent - without.fit_percent, f, without))
+        dropped = sorted((t for t in tests if not t[0]), key=lambda t: t[1])
+        if not dropped:
+            break
+        _, _, f, without = dropped[0]
+        run.trials[f.effect].kept = False
+        run.trials[f.effect].status += "; dropped: it only helped while another effect was missing"
+        findings = [g for g in findings if g is not f]
+        final = without
+    return [_refreshed(f, final) for f in findings], final
+
+
+def _added_parameters(fit, name: str) -> int:
+    """Parameters effect ``name`` adds in ``fit`` (for the information criterion)."""
+    for e in fit.effects_:
+        if e.name == name:
+            free = [q for q in fit.parameters if q.startswith(f"{name}.")]
+            return type(e).added_parameters(free)
+    return 1
+
+
+def _refreshed(f: Finding, final) -> Finding:
+    """``f`` with its parameters (and errors) as fitted in ``final`` together with the other findings."""
+    if f.effect not in {e.name for e in final.effects_}:
+        return f
+    values, errors = effect_parameters(final, f.effect)
+    f.parameters, f.standard_errors = _derived(f.effect, values, final), errors
+    return f

@@ -16,9 +16,9 @@ import numpy as np
 from scipy import stats
 
 from .result import MismatchWindow
-from .rules import FALSE_ALARM, LOCATE_WINDOW_S, LOCATE_WINDOW_SAMPLES, MAX_WINDOWS
+from .rules import EPISODE_GAP, EPISODE_LENGTH, FALSE_ALARM, LOCATE_WINDOW_S, LOCATE_WINDOW_SAMPLES, MAX_EPISODES, MAX_WINDOWS
 
-__all__ = ["operating_conditions", "locate_mismatch", "velocity_estimate", "named_states"]
+__all__ = ["operating_conditions", "locate_mismatch", "velocity_estimate", "named_states", "episodes"]
 
 
 def named_states(fit) -> dict:
@@ -162,3 +162,30 @@ def locate_mismatch(recording, rig, model_states: dict, noise_std: dict, window_
     found.sort(key=lambda w: -w.score)
     found = sorted(found[:max_windows], key=lambda w: (w.t_start_s, w.signal))
     return found, info
+
+
+_SIGNAL_ORDER = ("position_m", "pressure_a_Pa", "pressure_b_Pa")
+
+
+def episodes(windows: list, duration_s: float, max_episodes: int = MAX_EPISODES) -> list[MismatchWindow]:
+    """Mismatch windows merged into a few episodes a reader can follow: windows closer than
+    :data:`~.rules.EPISODE_GAP` of the recording's duration ``duration_s`` join one episode while it stays within
+    :data:`~.rules.EPISODE_LENGTH` of it; an episode takes the signal, condition and score of its strongest window
+    (its other signals in ``also_in``); the ``max_episodes`` strongest, in time order."""
+    groups: list[list] = []
+    gap, longest = EPISODE_GAP * duration_s, EPISODE_LENGTH * duration_s
+    for w in sorted(windows, key=lambda w: w.t_start_s):
+        if (groups and w.t_start_s - max(x.t_end_s for x in groups[-1]) <= gap
+                and w.t_end_s - groups[-1][0].t_start_s <= longest):
+            groups[-1].append(w)
+        else:
+            groups.append([w])
+    merged = []
+    for group in groups:
+        strongest = max(group, key=lambda w: w.score)
+        others = sorted({w.signal for w in group} - {strongest.signal},
+                        key=lambda s: _SIGNAL_ORDER.index(s) if s in _SIGNAL_ORDER else len(_SIGNAL_ORDER))
+        merged.append(MismatchWindow(min(w.t_start_s for w in group), max(w.t_end_s for w in group),
+                                     strongest.signal, strongest.condition, strongest.score, tuple(others)))
+    merged.sort(key=lambda w: -w.score)
+    return sorted(merged[:max(1, max_episodes)], key=lambda w: w.t_start_s)

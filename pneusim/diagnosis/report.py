@@ -3,7 +3,8 @@
 Plots (PNG):
 
 * ``fit.png`` -- measured position (and pressures) against the fitted nominal model and the improved
-  model (all findings switched on), mismatch windows shaded, the validation part marked;
+  model (all findings switched on), the mismatch episodes shaded, the validation part marked;
+* ``zoom.png`` -- the same three curves over the strongest mismatch episode, where the difference can be seen;
 * ``residuals.png`` -- residuals before (nominal) and after (improved) over time, in units of the
   sensor noise, with the mismatch windows shaded;
 * ``evidence-N-EFFECT.png`` -- the evidence of each finding, before and after modelling it (residual
@@ -22,6 +23,7 @@ from ..outputs import savefig_atomic, write_json_atomic, write_text_atomic
 from .locate import named_states, velocity_estimate
 from .refits import noise_levels
 from .result import DiagnosisResult
+from .rules import COMMAND_MAP_BINS, COMMAND_MAP_SPAN
 
 __all__ = ["write_report"]
 
@@ -36,8 +38,9 @@ def _plt():
 
 
 def _shade(ax, result, signal=None):
-    for w in result.mismatch:
-        if signal is None or w.signal == signal:
+    """Shade the mismatch episodes on ``signal`` (all where None)."""
+    for w in result.episodes or result.mismatch:
+        if signal is None or w.signal == signal or signal in w.also_in:
             ax.axvspan(w.t_start_s, w.t_end_s, color="C3", alpha=0.12, lw=0)
 
 
@@ -46,10 +49,7 @@ def plot_fit(result: DiagnosisResult, path) -> Path:
     rec = result.nominal_fit.recording
     t = rec.time_s
     nom, fin = named_states(result.nominal_fit), named_states(result.final_fit)
-    signals = [("position_m", rec.position_m, 1e3, "position (mm)")]
-    if rec.has_pressures:
-        signals += [("pressure_a_Pa", rec.pressure_a_Pa, 1e-5, "p_A (bar abs)"),
-                    ("pressure_b_Pa", rec.pressure_b_Pa, 1e-5, "p_B (bar abs)")]
+    signals = _signals(rec)
     fig, axes = plt.subplots(len(signals), 1, sharex=True, figsize=(11, 3.0 * len(signals)), squeeze=False)
     split = result.validation["t_start_s"]
     improved = result.findings and result.final_fit is not result.nominal_fit
@@ -63,8 +63,60 @@ def plot_fit(result: DiagnosisResult, path) -> Path:
         ax.axvline(split, color="0.4", ls=":", lw=1)
         ax.set_ylabel(label)
     axes[0, 0].set_title(f"{result.recording}: measured vs models (validation fit in brackets; validation from "
-                         f"{split:.1f} s, mismatch windows shaded)", fontsize=9)
+                         f"{split:.1f} s, mismatch episodes shaded)", fontsize=9)
     axes[0, 0].legend(loc="upper right", fontsize=8, ncol=3)
+    axes[-1, 0].set_xlabel("time (s)")
+    fig.tight_layout()
+    savefig_atomic(fig, path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def _signals(rec) -> list:
+    """``[(name, measured, scale, label)]`` of the measured signals, in plotting units."""
+    out = [("position_m", rec.position_m, 1e3, "position (mm)")]
+    if rec.has_pressures:
+        out += [("pressure_a_Pa", rec.pressure_a_Pa, 1e-5, "p_A (bar abs)"),
+                ("pressure_b_Pa", rec.pressure_b_Pa, 1e-5, "p_B (bar abs)")]
+    return out
+
+
+def strongest_episode(result: DiagnosisResult):
+    """The mismatch episode with the largest residual (None without one)."""
+    spans = result.episodes or result.mismatch
+    return max(spans, key=lambda w: w.score) if spans else None
+
+
+def plot_zoom(result: DiagnosisResult, path) -> Path:
+    """Measured, nominal and with-findings curves over the strongest mismatch episode (with a margin of half its
+    length, at least 0.5 s, each side): the mismatch at a scale where it shows."""
+    plt = _plt()
+    rec = result.nominal_fit.recording
+    t = rec.time_s
+    nom, fin = named_states(result.nominal_fit), named_states(result.final_fit)
+    w = strongest_episode(result)
+    if w is None:
+        lo, hi = float(t[0]), float(t[-1])
+    else:
+        margin = max(0.5, 0.5 * (w.t_end_s - w.t_start_s))
+        lo, hi = max(float(t[0]), w.t_start_s - margin), min(float(t[-1]), w.t_end_s + margin)
+    m = (t >= lo) & (t <= hi)
+    signals = _signals(rec)
+    fig, axes = plt.subplots(len(signals), 1, sharex=True, figsize=(9, 2.6 * len(signals)), squeeze=False)
+    improved = result.findings and result.final_fit is not result.nominal_fit
+    for ax, (name, y, scale, label) in zip(axes[:, 0], signals):
+        ax.plot(t[m], y[m] * scale, lw=1.0, color="0.2", label="measured")
+        ax.plot(t[m], nom[name][m] * scale, lw=1.0, color="C0", label="nominal")
+        if improved:
+            ax.plot(t[m], fin[name][m] * scale, lw=1.0, color="C2", ls="--",
+                    label=f"with {' + '.join(result.effects)}")
+        if w is not None:
+            ax.axvspan(w.t_start_s, w.t_end_s, color="C3", alpha=0.10, lw=0)
+        ax.set_ylabel(label)
+    where = (f"strongest mismatch episode {w.t_start_s:.2f}-{w.t_end_s:.2f} s on {w.signal} ({w.condition})"
+             if w is not None else "no mismatch episode: the whole recording")
+    axes[0, 0].set_title(f"{result.recording}: {where}", fontsize=9)
+    axes[0, 0].legend(loc="best", fontsize=8)
     axes[-1, 0].set_xlabel("time (s)")
     fig.tight_layout()
     savefig_atomic(fig, path, dpi=110)
@@ -179,17 +231,21 @@ def _plot_lag(ax, result, v, x, e_nom, e_fin, nom, fin):
 
 
 def _plot_command_map(ax, result, v, x, e_nom, e_fin, nom, fin):
+    rig = result.nominal_fit.rig
     u = result.nominal_fit.recording.valve_cmd_V
-    null = float(result.nominal_fit.rig.params.get("valve_null_V", 5.0))
-    small = np.abs(u - null) < 3.0
+    null = float(rig.params.get("valve_null_V", 5.0))
+    span = float(rig.params.get("valve_max_V", 10.0) - rig.params.get("valve_min_V", 0.0))
+    near = np.abs(u - null) <= COMMAND_MAP_SPAN * span
     for vv, c, lab in ((v, "0.2", "measured"), (nom["velocity_m_per_s"], "C0", "nominal"),
                        (fin["velocity_m_per_s"], "C2", "with findings")):
-        cx, cy = _binned(np.round(u[small], 2), vv[small] * 1e3, bins=30)
+        cx, cy = _binned(u[near], vv[near] * 1e3, bins=COMMAND_MAP_BINS)
         ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
     ax.axvline(null, color="0.5", lw=0.5, ls=":")
-    ax.set_xlabel("valve command (V)")
+    ax.axhline(0.0, color="0.5", lw=0.5)
+    ax.set_xlabel(f"valve command within {COMMAND_MAP_SPAN * span:.2g} V of null (V)")
     ax.set_ylabel("binned mean velocity (mm/s)")
-    ax.set_title("command-velocity map (mean velocity at each command)")
+    ax.set_title("command-velocity map near null\n(dead band: a flat spot at zero; offset: a shifted crossing)",
+                 fontsize=9)
 
 
 def _plot_over_time(ax, result, v, x, e_nom, e_fin, nom, fin):
@@ -248,29 +304,45 @@ def _markdown(result: DiagnosisResult, evidence_files) -> str:
              f"Rig `{result.rig}`; validation window {d['validation']['t_start_s']:.2f}-{d['validation']['t_end_s']:.2f} s "
              "(never used for fitting).", "",
              "## Verdict", ""]
+    named = [f for f in result.findings if f.effect != "other"]
+    other = next((f for f in result.findings if f.effect == "other"), None)
     if not result.findings:
         lines.append("**Nothing is missing**: no vocabulary effect improved the held-out fit by more than noise explains.")
-    else:
-        lines.append("**Physics left out**: " + ", ".join(f"`{f.effect}`" for f in result.findings) + ".")
+    if named:
+        lines.append("**Physics left out**, most important first: " + ", ".join(f"`{f.effect}`" for f in named) + ".")
+    if other is not None:
+        where = "; ".join(f"{w.t_start_s:.1f}-{w.t_end_s:.1f} s on {w.signal} ({w.condition})" for w in other.mismatch)
+        lines += ["", f"**Something not in the vocabulary**, here: {where or 'see the residuals'}. "
+                      "No vocabulary effect explains it (see the closest candidates below)."]
+    if result.status != "complete":
+        lines += ["", f"**Incomplete**: {result.status}; the findings are those made before it."]
     lines += ["", "| model | validation fit of the position (%) |", "|---|---|",
               f"| nominal (fitted) | {result.nominal['fit_percent']:.2f} |"]
     acc = []
     for f in result.findings:
         acc.append(f.effect)
         lines.append(f"| nominal + {' + '.join(acc)} | {f.fit_percent:.2f} (+{f.improvement_points:.2f}) |")
-    lines += ["", "![measured vs nominal vs improved](fit.png)", "", "![residuals before and after](residuals.png)", ""]
+    lines += ["", "![measured vs nominal vs improved](fit.png)", "",
+              "![the strongest mismatch episode, zoomed](zoom.png)", "",
+              "![residuals before and after](residuals.png)", ""]
     for k, f in enumerate(result.findings):
-        lines += [f"## Finding {k + 1}: `{f.effect}`", "", f"Evidence: {f.evidence}", "",
-                  "| parameter | estimate | standard error |", "|---|---|---|"]
+        lines += [f"## Finding {k + 1}: `{f.effect}`", "", f"Evidence: {f.evidence}", ""]
+        if f.effect == "other":
+            lines += _other_lines(f)
+            continue
+        lines += ["| parameter | estimate | standard error |", "|---|---|---|"]
         for name, v in f.parameters.items():
             lines.append(f"| `{name}` | {_value(v)} | {_value(f.standard_errors.get(name))} |")
         lines += ["", f"![evidence for {f.effect}]({evidence_files[k]})", ""]
     lines += ["## Where the mismatch is", "",
-              "Windows where the nominal model's residual exceeds what the sensor noise explains "
-              "(windowed mean square above the chi-square quantile of pure noise):", ""]
-    if result.mismatch:
-        lines += ["| from (s) | to (s) | signal | condition |", "|---|---|---|---|"]
-        lines += [f"| {w.t_start_s:.3f} | {w.t_end_s:.3f} | {w.signal} | {w.condition} |" for w in result.mismatch]
+              f"The nominal model's residual exceeds what the sensor noise explains (windowed mean square above the "
+              f"chi-square quantile of pure noise) in {len(result.mismatch)} window(s), merged here into "
+              f"{len(result.episodes)} episode(s), the strongest (the full list is in `diagnosis.json`):", ""]
+    if result.episodes:
+        lines += ["| from (s) | to (s) | signal | also in | condition | residual / noise (rms) |",
+                  "|---|---|---|---|---|---|"]
+        lines += [f"| {w.t_start_s:.2f} | {w.t_end_s:.2f} | {w.signal} | {', '.join(w.also_in) or '-'} | "
+                  f"{w.condition} | {math.sqrt(max(w.score, 0.0)):.1f} |" for w in result.episodes]
     else:
         lines.append("none: the nominal model explains the recording up to noise.")
     lines += ["", "## Candidates screened and tested", "", f"Test: {result.test}.", ""]
@@ -281,10 +353,30 @@ def _markdown(result: DiagnosisResult, evidence_files) -> str:
     for c in result.candidates:
         lines.append(f"| {c.effect} | {_value(c.score)} | {'yes' if c.refitted else 'no'} | "
                      f"{_value(c.fit_percent)} | {'yes' if c.kept else 'no'} | {c.status} |")
-    lines += ["", "## Nominal parameters (fitted)", "", "| parameter | estimate |", "|---|---|"]
-    lines += [f"| `{k}` | {_value(v)} |" for k, v in result.nominal["parameters"].items()]
+    lines += ["", "## Nominal parameters, fitted without and with the findings", "",
+              "Without the missing physics, the nominal parameters bend to make up for it; with the findings "
+              "modelled they move back toward physical values.", "",
+              "| parameter | without the findings | with the findings | change (%) |", "|---|---|---|---|"]
+    for k, v in result.nominal["parameters"].items():
+        after = result.final_parameters.get(k)
+        change = (100.0 * (after - v) / abs(v) if after is not None and v and math.isfinite(v) and math.isfinite(after)
+                  else None)
+        lines.append(f"| `{k}` | {_value(v)} | {_value(after)} | {_value(change)} |")
     lines += ["", f"Diagnosis time {result.seconds:.0f} s. The JSON result is `diagnosis.json`.", ""]
     return "\n".join(lines)
+
+
+def _other_lines(f) -> list:
+    """The ``other`` finding's episodes and closest vocabulary candidates, as report lines."""
+    lines = ["| from (s) | to (s) | signal | condition |", "|---|---|---|---|"]
+    lines += [f"| {w.t_start_s:.2f} | {w.t_end_s:.2f} | {w.signal} | {w.condition} |" for w in f.mismatch]
+    lines += ["", "Closest vocabulary candidates, and why each was rejected:", ""]
+    if f.closest:
+        lines += ["| effect | validation fit (%) | why rejected |", "|---|---|---|"]
+        lines += [f"| {c['effect']} | {_value(c.get('fit_percent'))} | {c['why_rejected']} |" for c in f.closest]
+    else:
+        lines.append("none was screened.")
+    return lines + [""]
 
 
 def _html(markdown: str, title: str) -> str:
@@ -338,9 +430,13 @@ def write_report(result: DiagnosisResult, folder) -> Path:
     write_json_atomic(folder / "diagnosis.json", result.to_dict(), indent=1, allow_nan=False)   # as write_json
     noise = noise_levels(result.nominal_fit.recording, result.nominal_fit.rig)
     plot_fit(result, folder / "fit.png")
+    plot_zoom(result, folder / "zoom.png")
     plot_residuals(result, folder / "residuals.png", noise)
     evidence = []
     for k, f in enumerate(result.findings):
+        if f.effect == "other":
+            evidence.append(None)
+            continue
         name = f"evidence-{k + 1}-{f.effect}.png"
         plot_evidence(result, k, folder / name)
         evidence.append(name)

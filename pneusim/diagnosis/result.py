@@ -24,7 +24,9 @@ def _num(value, digits: int = 6):
 class MismatchWindow:
     """A stretch of the recording where the nominal model's residual exceeds the sensor noise.
 
-    ``score`` is the window's mean squared residual divided by the noise variance (1 for pure noise).
+    ``score`` is the window's mean squared residual divided by the noise variance (1 for pure noise).  An
+    episode (windows merged, :func:`.locate.episodes`) names its strongest window's signal and condition, and the
+    other signals its windows were in (``also_in``).
     """
 
     t_start_s: float
@@ -32,10 +34,14 @@ class MismatchWindow:
     signal: str
     condition: str
     score: float = 1.0
+    also_in: tuple = ()
 
     def to_dict(self) -> dict:
-        return {"t_start_s": _num(self.t_start_s), "t_end_s": _num(self.t_end_s), "signal": self.signal,
-                "condition": self.condition}
+        out = {"t_start_s": _num(self.t_start_s), "t_end_s": _num(self.t_end_s), "signal": self.signal,
+               "condition": self.condition}
+        if self.also_in:
+            out["also_in"] = list(self.also_in)
+        return out
 
 
 @dataclass
@@ -56,6 +62,12 @@ class Finding:
         Validation fit of the position with this finding (and the ones ranked before it) modelled, %.
     improvement_points : float
         ``fit_percent`` minus the validation fit without this finding, percentage points.
+    mismatch : list of MismatchWindow
+        ``other`` only: the episodes where the unexplained residual is, with their operating conditions.
+    closest : list of dict
+        ``other`` only: the vocabulary candidates that came closest, ``{"effect", "why_rejected", "fit_percent"}``.
+    signatures : dict
+        ``other`` only: the signature numbers of the unexplained residual.
     """
 
     effect: str
@@ -64,12 +76,21 @@ class Finding:
     fit_percent: float
     improvement_points: float
     standard_errors: dict = field(default_factory=dict)
+    mismatch: list = field(default_factory=list)
+    closest: list = field(default_factory=list)
+    signatures: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        return {"effect": self.effect, "evidence": self.evidence,
-                "parameters": {k: (_num(v) if not isinstance(v, str) else v) for k, v in self.parameters.items()},
-                "standard_errors": {k: _num(v) for k, v in self.standard_errors.items()},
-                "fit_percent": _num(self.fit_percent), "improvement_points": _num(self.improvement_points)}
+        out = {"effect": self.effect, "evidence": self.evidence,
+               "parameters": {k: (_num(v) if not isinstance(v, str) else v) for k, v in self.parameters.items()},
+               "standard_errors": {k: _num(v) for k, v in self.standard_errors.items()},
+               "fit_percent": _num(self.fit_percent), "improvement_points": _num(self.improvement_points)}
+        if self.effect == "other":
+            out["mismatch"] = [w.to_dict() for w in self.mismatch]
+            out["closest"] = [{**c, "fit_percent": _num(c.get("fit_percent"))} for c in self.closest]
+            out["signatures"] = {k: (_num(v) if isinstance(v, (int, float)) else v)
+                                 for k, v in self.signatures.items()}
+        return out
 
 
 @dataclass
@@ -122,9 +143,19 @@ class DiagnosisResult:
         reported here with its error, not raised).
     seconds : float
         Wall time of the diagnosis.
+    status : str
+        ``"complete"``, or ``"stopped by the time budget: ..."`` naming the first step the budget refused (the
+        result then holds what was found before it).
+    episodes : list of MismatchWindow
+        The nominal fit's mismatch windows merged into a few episodes (:func:`.locate.episodes`).
+    final_parameters : dict
+        The nominal model's parameters as fitted with every finding (SI), beside ``nominal["parameters"]``
+        fitted without them: how far the nominal parameters had bent to make up for the missing physics.
     timing : dict
-        ``nominal_fit_s``, ``screening_s``, ``refits_s``: wall time of each stage; ``cpu_s``: the diagnosis's
-        processor time (this process, both fit threads).
+        ``nominal_fit_s``, ``screening_s``, ``refits_s``: wall time of each stage, the refits split into
+        ``first_finding_s`` (confirming the first round and the delay scan), ``on_top_s`` (the search on top of
+        the findings) and ``drop_one_s``; ``cpu_s``: the diagnosis's processor time (this process, both fit
+        threads).
     nominal_fit, final_fit : FitResult
         The fits themselves (for plots; not part of the JSON).
     """
@@ -139,6 +170,9 @@ class DiagnosisResult:
     candidates: list = field(default_factory=list)
     test: str = ""
     seconds: float = 0.0
+    status: str = "complete"
+    episodes: list = field(default_factory=list)
+    final_parameters: dict = field(default_factory=dict)
     timing: dict = field(default_factory=dict)
     nominal_fit: object = None
     final_fit: object = None
@@ -163,6 +197,9 @@ class DiagnosisResult:
             "mismatch": [w.to_dict() for w in self.mismatch],
             "findings": [f.to_dict() for f in self.findings],
             "final_fit_percent": _num(self.final_fit_percent),
+            "final_parameters": {k: _num(v) for k, v in self.final_parameters.items()},
+            "episodes": [w.to_dict() for w in self.episodes],
+            "status": self.status,
             "candidates": [c.to_dict() for c in self.candidates],
             "test": self.test,
             "timing": {"total_s": _num(self.seconds, 4), **{k: _num(v, 4) for k, v in self.timing.items()}},
@@ -191,4 +228,6 @@ class DiagnosisResult:
                          f"points); {params}")
             lines.append(f"   evidence: {f.evidence}")
         lines.append(f"final validation fit {self.final_fit_percent:.2f} %; {self.seconds:.0f} s")
+        if self.status != "complete":
+            lines.append(self.status)
         return "\n".join(lines)

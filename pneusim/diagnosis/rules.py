@@ -25,7 +25,8 @@ from ..fit import rules as fit_rules
 
 __all__ = [
     "MIN_SAMPLES", "VALIDATION_FRACTION", "VALIDATION_FRACTION_RANGE", "VALIDATION_MOTION_NOISE",
-    "FALSE_ALARM", "LOCATE_WINDOW_S", "LOCATE_WINDOW_SAMPLES", "MAX_WINDOWS",
+    "FALSE_ALARM", "LOCATE_WINDOW_S", "LOCATE_WINDOW_SAMPLES", "MAX_WINDOWS", "MAX_EPISODES", "EPISODE_GAP",
+    "EPISODE_LENGTH",
     "MODEL_SHORT", "MAX_REFITS", "MAX_LOOKALIKES", "MAX_FINDINGS",
     "SCREEN_SAMPLES", "SCREEN_EVALUATIONS", "SCANNED_EVALUATIONS", "DEFECT_WEIGHT", "DELAY_LAG_FACTORS",
     "DELAY_LAG_CORRELATION", "RELATIVE_SCORE", "MIN_EXPLAINED",
@@ -33,7 +34,8 @@ __all__ = [
     "RIVAL_WINDOW", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS",
     "MIN_IMPROVEMENT_POINTS", "ERROR_SHRINK", "CLEARLY_SHORT", "AT_NOISE", "PERFECT_ERROR",
     "DELAY_SCAN_ERROR_RATIO", "SCAN_FACTOR", "SCAN_REFITS", "DELAY_GRID_PER_SAMPLE", "MIN_DELAY_SAMPLES",
-    "ON_TOP_REFITS", "OTHER_RESIDUAL", "SOLVER_FAILURES",
+    "ON_TOP_REFITS", "OTHER_RESIDUAL", "MAX_CLOSEST", "TIME_BUDGET_S", "COMMAND_MAP_SPAN", "COMMAND_MAP_BINS",
+    "SOLVER_FAILURES",
     "bic_penalty", "information_gain", "noise_floor_points", "validation_room", "passes_test", "keep_test_text",
     "screening_route", "is_solver_failure", "rules_table", "table_markdown",
 ]
@@ -58,6 +60,13 @@ LOCATE_WINDOW_S = 0.1
 LOCATE_WINDOW_SAMPLES = 20
 #: (windows) at most this many mismatch windows are reported, the strongest
 MAX_WINDOWS = 50
+#: (episodes) the windows are merged into at most this many episodes for a reader, the strongest
+MAX_EPISODES = 5
+#: (fraction of the recording's duration) windows closer than this join one episode ...
+EPISODE_GAP = 0.02
+#: (fraction of the recording's duration) ... while it stays shorter than this: a residual above noise all along
+#: is said as several episodes a reader can find, not as the whole recording
+EPISODE_LENGTH = 0.1
 
 # ------------------------------------------------------------------------------ which screening, how many fits
 #: (normalised residual) the fit's own threshold (pneusim.fit.rules, one definition): a nominal fit ending more
@@ -68,8 +77,9 @@ MODEL_SHORT = fit_rules.MODEL_SHORT
 MAX_REFITS = 3
 #: (refits) look-alikes of each kept candidate (or of the leader) fitted in a second round, unless told otherwise
 MAX_LOOKALIKES = 2
-#: (effects) at most this many findings modelled together, unless told otherwise
-MAX_FINDINGS = 2
+#: (effects) at most this many findings modelled together, unless told otherwise: a worn rig shows up to three
+#: effects at once, and each one more is screened and tested on top of all the others
+MAX_FINDINGS = 3
 
 # ---------------------------------------------------------------------------- near noise: around the nominal fit
 #: (samples) the screening's window: at most this many of the estimation part's first samples
@@ -150,12 +160,24 @@ DELAY_GRID_PER_SAMPLE = 10
 MIN_DELAY_SAMPLES = 0.5
 
 # --------------------------------------------------------------------------------------- findings and other
-#: (refits) at most this many kept candidates are refitted on top of the first finding, those that explain most
-#: there first: far from noise nearly every candidate passes the test against the nominal model alone
+#: (refits) at most this many candidates are refitted on top of each set of findings, those whose screening explains
+#: most there first: far from noise nearly every candidate passes the test against the nominal model alone
 ON_TOP_REFITS = 2
 #: (normalised residual) with nothing kept, a nominal residual above this (the residuals alone, not the
 #: continuity defects a penalty fit left open) in mismatch windows is reported as ``other``
 OTHER_RESIDUAL = 3.0
+#: (candidates) the ``other`` finding names at most this many closest vocabulary candidates, with why each failed
+MAX_CLOSEST = 3
+#: (s of processor time) a diagnosis starts no fit that would end past this, unless told otherwise: it returns what
+#: it has, its status naming the step refused (five minutes of wall time on a busy two-core machine)
+TIME_BUDGET_S = 240.0
+
+# ------------------------------------------------------------------------------------------------ the report
+#: (fraction of the valve's span) the command-velocity map shows commands this close to null, where a dead band's
+#: flat spot or an offset's shifted zero crossing is
+COMMAND_MAP_SPAN = 0.15
+#: (bins) the map's resolution near null: a bin per command level where there are fewer
+COMMAND_MAP_BINS = 40
 
 
 # ---------------------------------------------------------------------------------- the keep test, as a rule

@@ -4,8 +4,9 @@ A step of :class:`~.estimator.Diagnosis` takes a :class:`DiagnosisRun`: the reco
 baseline every refit is compared with (:class:`NominalBaseline`), the options, the stages it calls
 (:class:`~.estimator.DiagnosisStages`: the fits, the screenings, the keep test) and the progress line; and it
 records its outcome there: a :class:`~.result.CandidateTrial` per effect (``trials``), the kept and rejected
-refits (``refits``, ``{effect: (fit, candidate)}``), and the candidates left to the screening on top of the
-first finding (``second_only``, ``{effect: candidate}``).  A test builds one with stand-in stages and runs one
+refits (``refits``, ``{effect: (fit, candidate)}``), the candidates left to the screening on top of the
+first finding (``second_only``, ``{effect: candidate}``), and every candidate a search on top of the findings
+screens (``on_top``, ``{label: candidate}``).  A test builds one with stand-in stages and runs one
 step alone.
 """
 
@@ -56,7 +57,7 @@ class DiagnosisRun:
         Residuals of the screening window (the ``ln N`` of a screening score).
     say : callable
         ``say(message)``: one progress line.
-    trials, refits, second_only : dict
+    trials, refits, second_only, on_top : dict
         What the steps found (see the module docstring).
     """
 
@@ -73,6 +74,7 @@ class DiagnosisRun:
     trials: dict = field(default_factory=dict)
     refits: dict = field(default_factory=dict)
     second_only: dict = field(default_factory=dict)
+    on_top: dict = field(default_factory=dict)
 
     @property
     def noise(self) -> dict:

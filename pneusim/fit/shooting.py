@@ -33,6 +33,7 @@ from ..errors import SolverError
 from ..model import ActuatorModel
 from ..solver.backends import state_scales
 from ..solver.sensitivity import SensitivitySimulator, command_schedule
+from . import deadline
 
 __all__ = ["FitData", "ShootingProblem", "variable_scales", "position_reading", "expected_position_reading"]
 
@@ -289,6 +290,7 @@ class ShootingProblem:
             sim.set_params(p)
 
         def work(sim, j):
+            deadline.check()   # a long evaluation stops between its segments too
             n_out = self.stops[j] - self.starts[j] + 1
             try:
                 return sim.run(self.data.time_s[self.starts[j]], starts[j], self.schedules[j], n_out, sensitivities)
@@ -303,6 +305,7 @@ class ShootingProblem:
         A failed integration gives NaN residuals (the optimiser then shortens its step).
         Results are cached for the last ``v``.
         """
+        deadline.check()   # a caller's processor-time deadline ends the fit here, whatever route it is in
         v = np.asarray(v, float)
         key = (v.tobytes(), derivatives)
         if self._cache_key is not None and self._cache_key[0] == key[0] and (self._cache_key[1] or not derivatives):

@@ -28,6 +28,7 @@ import numpy as np
 from ..errors import PneusimError
 from ..solver.backends import state_scales
 from ..solver.sensitivity import command_schedule
+from . import deadline
 from ._filter import filter_pass
 from .rules import FIRST_STATE_STD, PROCESS_STD
 from .shooting import ShootingProblem
@@ -81,6 +82,7 @@ def run_filter(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray, proc
     prediction-error gradient: the state sensitivities propagate through the model's one-sample
     sensitivities and the update's ``I - K H``), shape ``(N * n_measured, n_free + n)``.
     """
+    deadline.check()   # a caller's processor-time deadline ends the fit here (see .deadline)
     sim, data = pb.sims[0], pb.data
     n, nf = pb.n, pb.n_free
     sim.set_params(pb.params_of(theta))

@@ -115,9 +115,10 @@ def test_diagnosis_stages_default_to_todays_stages():
     from pneusim.diagnosis.around_nominal import confirm_around_nominal, screen_around_nominal
     from pneusim.diagnosis.candidates import polished_costs, screen
     from pneusim.diagnosis.delay import scan_kept_delay
-    from pneusim.diagnosis.findings import add_findings, other_finding
+    from pneusim.diagnosis.findings import add_findings, drop_one
     from pneusim.diagnosis.from_data_sheet import confirm_from_data_sheet, screen_from_data_sheet
     from pneusim.diagnosis.locate import locate_mismatch
+    from pneusim.diagnosis.other import other_finding
     from pneusim.diagnosis.refits import fit_from_data_sheet, fit_nominal, refit
     from pneusim.diagnosis.signatures import compute_signatures
     from pneusim.fit import prefit_recording
@@ -128,7 +129,8 @@ def test_diagnosis_stages_default_to_todays_stages():
                                                                                confirm_around_nominal)
     assert (stages.screen_from_data_sheet, stages.confirm_from_data_sheet) == (screen_from_data_sheet,
                                                                                  confirm_from_data_sheet)
-    assert (stages.delay_scan, stages.findings, stages.other) == (scan_kept_delay, add_findings, other_finding)
+    assert (stages.delay_scan, stages.findings, stages.drop_one, stages.other) == (scan_kept_delay, add_findings,
+                                                                                   drop_one, other_finding)
     assert (stages.screen, stages.polished_costs, stages.prefit) == (screen, polished_costs, prefit_recording)
     assert (stages.refit, stages.fit, stages.keep_test) == (refit, fit_from_data_sheet, rules.passes_test)
     with pytest.raises(AttributeError):
@@ -140,8 +142,8 @@ def test_diagnose_keeps_its_signature():
     signature = inspect.signature(diagnosis.diagnose)
     defaults = {name: p.default for name, p in signature.parameters.items()}
     assert defaults == {"recording": inspect.Parameter.empty, "rig": None, "effects": None, "validation_fraction": 0.3,
-                        "max_refits": 3, "max_lookalikes": 2, "max_findings": 2, "screen_samples": None,
-                        "progress": False}
+                        "max_refits": 3, "max_lookalikes": 2, "max_findings": 3, "screen_samples": None,
+                        "progress": False, "time_budget_s": 240.0}
 
 
 @pytest.mark.parametrize("path", MODULES, ids=lambda p: p.name)

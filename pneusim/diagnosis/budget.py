@@ -1,0 +1,108 @@
+"""The diagnosis's time budget: no recording runs past it, and one that cannot finish returns what it has.
+
+A diagnosis is a sequence of fits, from seconds to minutes each, and none can be stopped half-way and give a
+fit.  :class:`Budget` is asked before each costly step whether the step fits in what is left, the step's
+expected cost measured on this recording (a whole fit: the nominal fit's own processor time); a step that does
+not fit is not started, and one that started is stopped at the budget's end (a processor-time deadline every
+evaluation of a fit checks, :mod:`pneusim.fit.deadline`).  :func:`gated_stages` puts both in front of every fit
+and screening a diagnosis calls: a refused or stopped step raises :class:`TimeBudgetExhausted`, a
+:class:`~pneusim.errors.PneusimError`, so every step reports it in its candidate's trial as it reports a failed
+fit, and goes on with what it has; the result's ``status`` says which step was refused or stopped.
+
+The budget counts the process's processor time (every thread of it), not the wall clock: on an idle machine a
+diagnosis then ends within its budget in wall time too, and on a loaded one the answer does not depend on what
+else runs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import time
+
+from ..errors import PneusimError
+from ..fit.deadline import cpu_deadline
+
+__all__ = ["Budget", "TimeBudgetExhausted", "gated_stages"]
+
+
+class TimeBudgetExhausted(PneusimError):
+    """A step of the diagnosis was not started: it would not fit in what is left of the time budget."""
+
+
+class Budget:
+    """At most ``seconds`` of processor time for one diagnosis (``math.inf``: no limit), counted from
+    construction."""
+
+    def __init__(self, seconds: float = math.inf):
+        if not seconds > 0:
+            raise PneusimError(f"the diagnosis's time budget must be a positive number of seconds, got {seconds}")
+        self.seconds = float(seconds)
+        self.started = time.process_time()
+        #: the first step refused and why (None: none was refused)
+        self.stopped: str | None = None
+
+    def used(self) -> float:
+        """Processor seconds used so far."""
+        return time.process_time() - self.started
+
+    def left(self) -> float:
+        """Processor seconds left (negative once overspent)."""
+        return self.seconds - self.used()
+
+    def check(self, step: str, cost_s: float) -> None:
+        """Raise :class:`TimeBudgetExhausted` where ``step``, expected to cost ``cost_s`` processor seconds,
+        does not fit in what is left; the first refusal is recorded in :attr:`stopped`."""
+        if self.stopped is None and self.used() + max(0.0, cost_s) <= self.seconds:
+            return
+        reason = (f"{step} (expected {cost_s:.0f} s of processor time) does not fit in the {max(self.left(), 0.0):.0f} s "
+                  f"left of the {self.seconds:.0f} s time budget")
+        if self.stopped is None:
+            self.stopped = reason
+        raise TimeBudgetExhausted(f"not started: {reason}")
+
+    def stop(self, reason: str) -> None:
+        """Record that the budget ran out (``reason``) unless a refusal was recorded first: every later step
+        is refused."""
+        if self.stopped is None:
+            self.stopped = reason
+
+    @property
+    def status(self) -> str:
+        """``"complete"``, or ``"stopped by the time budget: ..."`` naming the first step refused."""
+        return "complete" if self.stopped is None else f"stopped by the time budget: {self.stopped}"
+
+
+#: the stages a budget gates, and what each costs: a whole fit (True) or a few trust-region steps (False)
+_GATED = {"refit": True, "fit": True, "prefit": False, "screen": False, "polished_costs": False}
+
+
+def gated_stages(stages, budget: Budget, fit_cost_s: float):
+    """``stages`` (:class:`~.estimator.DiagnosisStages`) with every fit and screening asking ``budget`` first:
+    a whole fit is expected to cost ``fit_cost_s`` processor seconds (the nominal fit's), a pre-fit or a
+    screening nothing beyond what is already spent (it is refused only once the budget is overspent).  A step
+    that started runs under the budget's end as a deadline (:func:`pneusim.fit.deadline.cpu_deadline`): a fit
+    that would run past it stops at its next evaluation, and the step raises :class:`TimeBudgetExhausted`
+    whatever the fit returned (a fit stopped half-way is no result)."""
+    def gate(name: str, call, whole: bool):
+        step = f"the {name.replace('_', ' ')}"
+
+        @functools.wraps(call)
+        def gated(*args, **kwargs):
+            budget.check(step, fit_cost_s if whole else 0.0)
+            with cpu_deadline(budget.started + budget.seconds) as deadline:
+                try:
+                    out = call(*args, **kwargs)
+                except Exception:
+                    if not deadline.reached:
+                        raise
+                    out = None
+            if deadline.reached:
+                budget.stop(f"{step} ran to the end of the {budget.seconds:.0f} s time budget and was stopped")
+                raise TimeBudgetExhausted(f"stopped: {budget.stopped}")
+            return out
+        return gated
+
+    return dataclasses.replace(stages, **{name: gate(name, getattr(stages, name), whole)
+                                          for name, whole in _GATED.items()})
