@@ -55,11 +55,15 @@ def register(sub) -> None:
                    help="leading candidates confirmed by a whole refit, one per look-alike family (default 3)")
     p.add_argument("--max-lookalikes", type=int, default=2, metavar="K",
                    help="look-alikes of the winning candidate refitted after them (default 2)")
-    p.add_argument("--max-findings", type=int, default=3, metavar="K",
-                   help="at most this many vocabulary effects modelled together (default 3)")
-    p.add_argument("--time-budget", type=float, default=240.0, metavar="SECONDS",
-                   help="processor seconds a recording's diagnosis may take: no fit that would end past it is "
-                        "started, and the result, with what was found before, says so (default 240)")
+    p.add_argument("--several-effects", action="store_true",
+                   help="search for several effects at once (up to 3, each tested with the others present) and "
+                        "say 'other' where the findings leave physics unexplained, within a time budget")
+    p.add_argument("--max-findings", type=int, default=None, metavar="K",
+                   help="at most this many vocabulary effects modelled together (default 2; 3 with "
+                        "--several-effects)")
+    p.add_argument("--time-budget", type=float, default=None, metavar="SECONDS",
+                   help="processor seconds a recording's diagnosis may take: no fit runs past it, and the result, "
+                        "with what was found before, says so (default: none; 240 with --several-effects)")
     p.add_argument("--json", metavar="OUT.json", help="write the JSON result (one recording)")
     p.add_argument("--report", metavar="DIR", help="write the report folder (open DIR/index.html); for "
                                                    "several recordings, the folder of all reports and the summary")
@@ -86,16 +90,17 @@ def run(args) -> int:
         raise PneusimError(f"--workers must be >= 0, got {args.workers}")
     for option, value in (("--max-refits", args.max_refits), ("--max-lookalikes", args.max_lookalikes),
                           ("--max-findings", args.max_findings)):
-        if value < 0:
+        if value is not None and value < 0:
             raise PneusimError(f"{option} must be >= 0, got {value}")
-    if not (args.time_budget > 0 and math.isfinite(args.time_budget)):
+    if args.time_budget is not None and not (args.time_budget > 0 and math.isfinite(args.time_budget)):
         raise PneusimError(f"--time-budget must be a positive number of seconds, got {args.time_budget}")
     if args.rig:
         load_rig_file(args.rig)  # an unknown rig is reported before any work
     files = expand_recordings(args.recordings)
     options = {"effects": args.effect, "validation_fraction": args.validation_fraction,
                "max_refits": args.max_refits, "max_lookalikes": args.max_lookalikes,
-               "max_findings": args.max_findings, "time_budget_s": args.time_budget}
+               "max_findings": args.max_findings, "several_effects": args.several_effects,
+               "time_budget_s": args.time_budget}
     identity = {"recordings": [file_digest(f) for f in files], "rig": args.rig, "options": options}
     inputs = {f"the recording {f}": f for f in files}
     many = len(files) > 1 or any(Path(r).is_dir() for r in args.recordings)

@@ -9,15 +9,15 @@ from __future__ import annotations
 
 from .estimator import Diagnosis
 from .result import DiagnosisResult
-from .rules import MAX_FINDINGS, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, TIME_BUDGET_S, VALIDATION_FRACTION
+from .rules import MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, VALIDATION_FRACTION
 
 __all__ = ["diagnose", "MIN_SAMPLES"]
 
 
 def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = VALIDATION_FRACTION,
-             max_refits: int = MAX_REFITS, max_lookalikes: int = MAX_LOOKALIKES, max_findings: int = MAX_FINDINGS,
+             max_refits: int = MAX_REFITS, max_lookalikes: int = MAX_LOOKALIKES, max_findings: int | None = None,
              screen_samples: int | None = None, progress: bool = False,
-             time_budget_s: float = TIME_BUDGET_S) -> DiagnosisResult:
+             several_effects: bool = False, time_budget_s: float | None = None) -> DiagnosisResult:
     """Diagnose what physics the nominal model leaves out of ``recording``.
 
     Parameters
@@ -35,15 +35,21 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
         (:data:`.candidates.FAMILIES`).
     max_lookalikes : int
         Look-alikes of the winning candidate (same family) refitted in a second round.
-    max_findings : int
-        At most this many findings (effects modelled together).
+    max_findings : int, optional
+        At most this many findings (effects modelled together); default :data:`.rules.MAX_FINDINGS` (2), with
+        ``several_effects`` :data:`.rules.MAX_FINDINGS_SEVERAL` (3).
     screen_samples : int, optional
         Estimation samples the screening uses (default :data:`.rules.SCREEN_SAMPLES`).
     progress : bool
         Print one line per stage to standard error.
-    time_budget_s : float
-        Processor seconds the diagnosis may take (:data:`.rules.TIME_BUDGET_S`): no fit that would end past it
-        is started, and the result (``status``) says which step was refused; ``math.inf`` for no limit.
+    several_effects : bool
+        Search for several effects at once: every vocabulary variant screened on top of the findings, one more
+        at a time, each finding tested with the others present (drop-one), ``other`` after the findings where
+        they leave physics unexplained, and a time budget (see :mod:`.estimator`).
+    time_budget_s : float, optional
+        Processor seconds the diagnosis may take: no fit that would end past it is started, one that runs past
+        it is stopped, and the result (``status``) says which step; default :data:`.rules.TIME_BUDGET_S` with
+        ``several_effects``, else no limit.
 
     Returns
     -------
@@ -58,4 +64,5 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
     """
     return Diagnosis(effects=effects, validation_fraction=validation_fraction, max_refits=max_refits,
                      max_lookalikes=max_lookalikes, max_findings=max_findings, screen_samples=screen_samples,
-                     progress=progress, time_budget_s=time_budget_s).fit(recording, rig)
+                     progress=progress, several_effects=several_effects,
+                     time_budget_s=time_budget_s).fit(recording, rig)

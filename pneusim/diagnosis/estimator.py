@@ -26,6 +26,11 @@
    leaves a residual well above noise, an ``other`` finding: where, under which conditions, what it looks like,
    and which vocabulary effects came closest and why they failed.
 
+Steps 7's search beyond a second effect, 8 and 9's ``other`` after findings are those of ``several_effects=True``
+(:data:`~.rules.MAX_FINDINGS_SEVERAL` findings, every vocabulary variant searched on top, a time budget); without
+it the search is the one-effect-first one: a second effect among the candidates the first round kept or set
+aside, ``other`` only where nothing was kept, no budget unless one is given.
+
 Every fit and screening after the nominal fit first asks the time budget (:mod:`.budget`): one that would end
 past it is not started, and the diagnosis returns what it has, its ``status`` naming the step refused.
 
@@ -61,7 +66,7 @@ from .locate import episodes, locate_mismatch, named_states
 from .other import other_finding
 from .refits import estimation_cost, fit_from_data_sheet, fit_nominal, noise_levels, refit
 from .result import DiagnosisResult
-from .rules import (MAX_FINDINGS, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, MODEL_SHORT, SCREEN_SAMPLES,
+from .rules import (MAX_FINDINGS, MAX_FINDINGS_SEVERAL, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, MODEL_SHORT, SCREEN_SAMPLES,
                     TIME_BUDGET_S, VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE, VALIDATION_MOTION_NOISE, WINDOW_SAMPLES,
                     keep_test_text, noise_floor_points, passes_test, screening_route, validation_room)
 from .run import DiagnosisRun, NominalBaseline
@@ -185,10 +190,15 @@ class Diagnosis:
     """
 
     def __init__(self, *, effects=None, validation_fraction: float = VALIDATION_FRACTION,
-                 max_refits: int = MAX_REFITS, max_lookalikes: int = MAX_LOOKALIKES, max_findings: int = MAX_FINDINGS,
-                 screen_samples: int | None = None, progress: bool = False, time_budget_s: float = TIME_BUDGET_S,
-                 stages: DiagnosisStages = DiagnosisStages()):
+                 max_refits: int = MAX_REFITS, max_lookalikes: int = MAX_LOOKALIKES, max_findings: int | None = None,
+                 screen_samples: int | None = None, progress: bool = False, several_effects: bool = False,
+                 time_budget_s: float | None = None, stages: DiagnosisStages = DiagnosisStages()):
         self.effects, self.validation_fraction = effects, validation_fraction
+        self.several_effects = several_effects
+        if max_findings is None:
+            max_findings = MAX_FINDINGS_SEVERAL if several_effects else MAX_FINDINGS
+        if time_budget_s is None:
+            time_budget_s = TIME_BUDGET_S if several_effects else math.inf
         self.time_budget_s = time_budget_s
         self.max_refits, self.max_lookalikes, self.max_findings = max_refits, max_lookalikes, max_findings
         self.screen_samples, self.progress, self.stages = screen_samples, progress, stages
@@ -230,10 +240,13 @@ class Diagnosis:
         kept = run.kept_by_fit()
         findings, final = stages.findings(run, kept) if kept else ([], nominal)               # 7. findings
         t_on_top = time.perf_counter()
-        findings, final = stages.drop_one(run, findings, final)                               # 8. drop-one
+        if self.several_effects:
+            findings, final = stages.drop_one(run, findings, final)                           # 8. drop-one
         t_drop_one = time.perf_counter()
         duration_s = float(recording.time_s[-1] - recording.time_s[0])
         ended = _search_ended(budget, findings, kept, self.max_findings)
+        if findings and not self.several_effects:
+            ended = None      # the one-effect-first search says ``other`` only where nothing was kept
         other = stages.other(run, final, duration_s, ended) if ended is not None else None   # 9. other
         findings += [other] if other is not None else []
         basis = run.baseline
@@ -281,6 +294,7 @@ class Diagnosis:
         basis = NominalBaseline(noise, cost0, n_res, nominal.fit_percent, floor, self.validation_fraction, nominal)
         return DiagnosisRun(recording, nominal.rig, basis, stages, max_refits=self.max_refits,
                             max_lookalikes=self.max_lookalikes, max_findings=self.max_findings,
+                            several_effects=self.several_effects,
                             screen_samples=self.screen_samples, n_screen=n_screen,
                             say=lambda message: self._say(name, message))
 

@@ -40,7 +40,7 @@ def add_findings(run, kept: list) -> tuple[list, object]:
     findings = [_finding(first, final, run.baseline.fit0, run.trials[first])]
     pool = {eff: run.refits[eff][1] for eff in kept[1:]}
     pool.update(run.second_only)
-    for label, c in run.on_top.items():
+    for label, c in (run.on_top.items() if run.several_effects else ()):
         if c.name != first and c.name not in pool and label not in pool:
             pool[label] = c
     while pool and len(findings) < run.max_findings:
@@ -72,7 +72,7 @@ def _one_more(run, findings: list, final, pool: dict) -> tuple[bool, object]:
             break
         c = pool.pop(key)
         screened = f" (screening explains {gain:.0f} of {base_top:.0f} there)" if math.isfinite(gain) else ""
-        tried = _refit_on_top(run, names, final, c, screened, scores[key][2])
+        tried = _refit_on_top(run, names, final, c, screened, scores[key][2] if run.several_effects else None)
         if tried is None:
             continue
         ok, fit2, c_prev, c2 = tried
@@ -143,6 +143,7 @@ def _refit_on_top(run, first: str, final, c, screened: str, screening: dict | No
     trial, basis = _trial_of(run, c), run.baseline
     effect = effect_at_screened(c, screening if screening and screening.get("parameters") else
                                 {"parameters": trial.parameters})
+    from_sheet = effect if screening else None   # the one-effect-first search refits from the data sheet as before
     run.say(f"refit with {first} and {c.label}")
     trial.kept, trial.refitted = False, True
     started = time.perf_counter()
@@ -161,7 +162,7 @@ def _refit_on_top(run, first: str, final, c, screened: str, screening: dict | No
                                          fit2.fit_percent, basis.floor)
     trial.status += f"; on top of {first}{screened}: {reason}"
     if not ok and math.sqrt(c_prev / max(basis.n_residuals, 1)) > MODEL_SHORT:
-        both = _on_top_from_data_sheet(run, final, c, trial, effect)
+        both = _on_top_from_data_sheet(run, final, c, trial, from_sheet)
         if both is not None:
             fit2, c2 = both
             ok, _, reason = run.stages.keep_test(c_prev, c2, basis.n_residuals, c.n_added, final.fit_percent,

@@ -27,7 +27,7 @@ __all__ = [
     "MIN_SAMPLES", "VALIDATION_FRACTION", "VALIDATION_FRACTION_RANGE", "VALIDATION_MOTION_NOISE",
     "FALSE_ALARM", "LOCATE_WINDOW_S", "LOCATE_WINDOW_SAMPLES", "MAX_WINDOWS", "MAX_EPISODES", "EPISODE_GAP",
     "EPISODE_LENGTH",
-    "MODEL_SHORT", "MAX_REFITS", "MAX_LOOKALIKES", "MAX_FINDINGS",
+    "MODEL_SHORT", "MAX_REFITS", "MAX_LOOKALIKES", "MAX_FINDINGS", "MAX_FINDINGS_SEVERAL",
     "SCREEN_SAMPLES", "SCREEN_EVALUATIONS", "SCANNED_EVALUATIONS", "DEFECT_WEIGHT", "DELAY_LAG_FACTORS",
     "DELAY_LAG_CORRELATION", "RELATIVE_SCORE", "MIN_EXPLAINED",
     "WINDOW_SAMPLES", "PREFIT_EVALUATIONS", "AT_NOISE_ON_WINDOW", "WINDOW_SHOWS_MISMATCH", "MAX_FITS", "EXPLAINED",
@@ -77,9 +77,11 @@ MODEL_SHORT = fit_rules.MODEL_SHORT
 MAX_REFITS = 3
 #: (refits) look-alikes of each kept candidate (or of the leader) fitted in a second round, unless told otherwise
 MAX_LOOKALIKES = 2
-#: (effects) at most this many findings modelled together, unless told otherwise: a worn rig shows up to three
-#: effects at once, and each one more is screened and tested on top of all the others
-MAX_FINDINGS = 3
+#: (effects) at most this many findings modelled together, unless told otherwise: the first and one on top of it
+MAX_FINDINGS = 2
+#: (effects) ... with several effects searched for (``several_effects``): a worn rig shows up to three at once, and
+#: each one more is screened and tested on top of all the others
+MAX_FINDINGS_SEVERAL = 3
 
 # ---------------------------------------------------------------------------- near noise: around the nominal fit
 #: (samples) the screening's window: at most this many of the estimation part's first samples
@@ -168,8 +170,9 @@ ON_TOP_REFITS = 2
 OTHER_RESIDUAL = 3.0
 #: (candidates) the ``other`` finding names at most this many closest vocabulary candidates, with why each failed
 MAX_CLOSEST = 3
-#: (s of processor time) a diagnosis starts no fit that would end past this, unless told otherwise: it returns what
-#: it has, its status naming the step refused (five minutes of wall time on a busy two-core machine)
+#: (s of processor time) with several effects searched for, a diagnosis starts no fit that would end past this and
+#: stops one that runs past it, unless told otherwise: it returns what it has, its status naming the step refused
+#: (five minutes of wall time on a busy two-core machine); the one-effect-first search has none unless told
 TIME_BUDGET_S = 240.0
 
 # ------------------------------------------------------------------------------------------------ the report

@@ -49,7 +49,7 @@ class DiagnosisRun:
     baseline : NominalBaseline
     stages : DiagnosisStages
         The callables the steps use (:class:`~.estimator.DiagnosisStages`).
-    max_refits, max_lookalikes, max_findings : int
+    max_refits, max_lookalikes, max_findings, several_effects
         The options of :class:`~.estimator.Diagnosis`.
     screen_samples : int or None
         Estimation samples the screening uses (None: :data:`~.rules.SCREEN_SAMPLES`).
@@ -68,6 +68,7 @@ class DiagnosisRun:
     max_refits: int = MAX_REFITS
     max_lookalikes: int = MAX_LOOKALIKES
     max_findings: int = MAX_FINDINGS
+    several_effects: bool = False
     screen_samples: int | None = None
     n_screen: int = 0
     say: Callable = _silent

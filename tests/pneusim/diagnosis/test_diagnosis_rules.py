@@ -421,6 +421,7 @@ def test_a_third_effect_is_searched_on_top_of_two_among_candidates_the_first_rou
     basis = NominalBaseline(NOISE, 13.0 ** 2 * n, n, 70.0, 0.2, 0.3, None)
     run = stand_in_run(basis, trials=trials, refits=refits, screen=stand_in_screen, refit=stand_in_refit,
                        keep_test=lambda c0, c1, n_, k, f0, f1, floor: (c1 < 0.5 * c0, 0.5, "test"))
+    run.several_effects, run.max_findings = True, 3
     run.on_top = {name: Candidate(name, name, make_effect(name), [])
                   for name in ("valve_offset", "friction_asymmetry", "valve_dynamics", "external_load")}
     findings, final = add_findings(run, ["leakage"])

@@ -1,4 +1,4 @@
-"""Several effects at once, recovered from our own simulations: each found, its parameters within their
+"""Several effects at once (``several_effects=True``), recovered from our own simulations: each found, its parameters within their
 uncertainty of the truth, the report's plots drawn with their axes labelled.
 
 The recordings are those of ``test_diagnosis`` (the paper-2 rig with every nominal free parameter off its data
@@ -44,7 +44,7 @@ def _recovered(result, truth) -> None:
 @pytest.fixture(scope="module")
 def two_effects(tmp_path_factory):
     path = _simulate(tmp_path_factory.mktemp("two"), _effects(TWO))
-    return diagnose(path)
+    return diagnose(path, several_effects=True)
 
 
 @pytest.mark.minutes
@@ -87,7 +87,7 @@ def test_the_report_draws_every_plot_with_its_axes_labelled(two_effects, tmp_pat
 def test_three_effects_at_once_are_all_found(tmp_path):
     """A dead band, a constant load and seals that drag twice as hard retracting: each found on top of the
     ones before it, all kept with the others present."""
-    _recovered(diagnose(_simulate(tmp_path, _effects(THREE))), THREE)
+    _recovered(diagnose(_simulate(tmp_path, _effects(THREE)), several_effects=True), THREE)
 
 
 @pytest.mark.minutes
@@ -105,7 +105,8 @@ def test_physics_outside_the_vocabulary_is_said_as_other_with_where_and_the_clos
     name = "practice3_27.csv"
     answer = json.loads((shared_dir / "practice3" / "answers.json").read_text())["cases"][name]
     assert [e["effect"] for e in answer["effects"]] == ["other"]
-    result = diagnose(shared_dir / "practice3" / name, effects=["leakage", "friction_asymmetry"])
+    result = diagnose(shared_dir / "practice3" / name, effects=["leakage", "friction_asymmetry"],
+                      several_effects=True)
     assert result.effects == ["other"] and result.status == "complete"
     other = result.findings[0]
     # where: a few episodes inside the recording (here the residual is above noise nearly all along)
