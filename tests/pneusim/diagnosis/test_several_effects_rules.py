@@ -1,0 +1,253 @@
+"""The rules of the several-effects search, ``other`` and the time budget, each on stand-in fits: a third effect
+searched on top of two among candidates the first round never fitted, drop-one, ``other`` with its episodes and
+closest candidates, the budget refusing and stopping fits, episodes.  The same stand-ins as
+``test_diagnosis_rules``; the searches on our own simulations are ``test_several_effects``.
+"""
+
+import math
+
+import pytest
+from stand_ins import NOISE, StandInFit, stand_in_run
+
+from pneusim.diagnosis.candidates import Candidate
+from pneusim.diagnosis.result import CandidateTrial
+from pneusim.diagnosis.run import NominalBaseline
+from pneusim.model import make_effect
+
+
+def _other_stand_in(times_noise: float, defect_sum_squares: float, fit_percent: float = 98.7, effects=()):
+    """A fit whose residuals end at ``times_noise`` times the noise on its estimation part, with continuity
+    defects ``defect_sum_squares`` left open, validation fit ``fit_percent`` %."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    recording = SimpleNamespace(position_m=np.zeros(1500))
+    return SimpleNamespace(recording=recording, n_estimation=1000, sigma={"position_m": times_noise * 1e-4},
+                           solver={"defect_sum_squares": defect_sum_squares}, fit_percent=fit_percent,
+                           rig=None, effects_=[make_effect(e) for e in effects])
+
+
+def _other_run(windows, trials=None):
+    from pneusim.diagnosis.result import MismatchWindow  # noqa: F401 - the windows' type
+
+    basis = NominalBaseline({"position_m": 1e-4}, 1.0, 1000, 90.0, 0.2, 0.3, None)
+    return stand_in_run(basis, trials=trials or {}, locate=lambda recording, rig, states, noise: (windows, {}),
+                        signatures=lambda recording, rig, states, velocity: {"direction_correlation": 0.1})
+
+
+def test_other_is_said_on_the_residuals_alone_not_on_the_defects_a_penalty_fit_left_open(monkeypatch):
+    """``other`` needs the fit's residuals above 3 times the noise (and its validation error clearly short of
+    the noise floor); continuity defects left open by a fit that ended in the penalty form count in the keep
+    test's costs but not here.  The stand-in of a control: residuals at 1.13 times noise, defects whose penalty
+    put the weighted cost at 21 times noise."""
+    from pneusim.diagnosis import other
+    from pneusim.diagnosis.refits import estimation_cost
+    from pneusim.diagnosis.result import MismatchWindow
+
+    monkeypatch.setattr(other, "named_states", lambda fit: {"velocity_m_per_s": None})
+    windows = [MismatchWindow(1.0, 1.5, "position_m", "velocity reversal", 9.0),
+               MismatchWindow(1.6, 2.2, "pressure_a_Pa", "holding still", 4.0),
+               MismatchWindow(30.0, 30.8, "position_m", "velocity reversal", 5.0)]
+    run = _other_run(windows)
+    control = _other_stand_in(1.13, 0.00467)
+    weighted, n = estimation_cost(control, run.noise)
+    assert math.sqrt(weighted / n) > 20.0
+    assert other.other_finding(run, control, 40.0) is None
+    short = _other_stand_in(6.94, 0.0012)
+    finding = other.other_finding(run, short, 40.0)
+    assert finding.effect == "other" and "6.9 times the sensor noise" in finding.evidence
+    assert "something not in the vocabulary" in finding.evidence and finding.fit_percent == 98.7
+    # the windows 0.1 s apart (< 2 % of 40 s) are one episode, named by its strongest window's signal
+    assert [(w.t_start_s, w.t_end_s, w.signal, w.also_in) for w in finding.mismatch] == [
+        (1.0, 2.2, "position_m", ("pressure_a_Pa",)), (30.0, 30.8, "position_m", ())]
+    assert finding.to_dict()["mismatch"][0]["also_in"] == ["pressure_a_Pa"]
+    # a residual above noise on the estimation part, but a validation error within 2 F of the floor: not other
+    assert other.other_finding(run, _other_stand_in(6.94, 0.0012, fit_percent=99.7), 40.0) is None
+    assert other.other_finding(_other_run([]), short, 40.0) is None
+
+
+def test_other_names_the_closest_candidates_and_why_they_failed(monkeypatch):
+    """After the findings, what they leave above noise is ``other``: the model with them named, the vocabulary
+    candidates that came closest (refitted ones by validation fit, then screened ones by score) with the
+    outcome that rejected each, never a kept one."""
+    from pneusim.diagnosis import other
+    from pneusim.diagnosis.result import MismatchWindow
+
+    monkeypatch.setattr(other, "named_states", lambda fit: {"velocity_m_per_s": None})
+    trials = {
+        "leakage": CandidateTrial("leakage", 50.0, "", refitted=True, status="kept", fit_percent=95.0, kept=True),
+        "external_load": CandidateTrial("external_load", 30.0, "", refitted=True, fit_percent=93.0,
+                                        status="fitted: validation: +0.31 points, not above the noise threshold 0.50"),
+        "valve_offset": CandidateTrial("valve_offset", 20.0, "", refitted=True, fit_percent=94.0,
+                                       status="fitted; on top of leakage: estimation: BIC does not drop"),
+        "heat_transfer": CandidateTrial("heat_transfer", 40.0, "", status="not refitted"),
+        "valve_dynamics": CandidateTrial("valve_dynamics", 10.0, "", status="not refitted"),
+    }
+    run = _other_run([MismatchWindow(3.0, 3.4, "position_m", "extending, near the extended end", 12.0)], trials)
+    finding = other.other_finding(run, _other_stand_in(5.0, 0.0, fit_percent=95.0, effects=["leakage"]), 40.0,
+                                  "no vocabulary effect passed the test on top of the findings")
+    assert [c["effect"] for c in finding.closest] == ["valve_offset", "external_load", "heat_transfer"]
+    assert finding.closest[0]["why_rejected"] == "on top of leakage: estimation: BIC does not drop"
+    assert "the nominal model with leakage leaves" in finding.evidence
+    assert "3.0-3.4 s on position_m (extending, near the extended end)" in finding.evidence
+    assert finding.to_dict()["closest"][1]["fit_percent"] == 93.0
+
+
+def test_a_third_effect_is_searched_on_top_of_two_among_candidates_the_first_round_never_fitted():
+    """After a second finding the rest are screened again on top of both, and a third is refitted there; the
+    pool holds every vocabulary variant (``run.on_top``), not only what the first round kept or set aside, and
+    a candidate the first round never screened gets a trial saying so."""
+    from pneusim.diagnosis.findings import add_findings
+
+    n, refitted = 1000, []
+    truth = {"leakage", "friction_asymmetry", "valve_dynamics"}
+
+    def rms_of(effects):
+        return 1.0 + 4.0 * len(truth - {e.name for e in effects})
+
+    def stand_in_screen(fit, recording, candidate, noise, samples=None):
+        base = fit.rms ** 2 * n
+        if candidate is None:
+            return {"cost": base}
+        names = {e.name for e in fit.effects_} | {candidate.name}
+        return {"cost": rms_of([make_effect(k) for k in names]) ** 2 * n, "parameters": {}}
+
+    def stand_in_refit(recording, rig, effects, warm, start_values=None):
+        refitted.append(effects[-1].name)
+        rms = rms_of(effects)
+        return StandInFit(rms, 100.0 - 2.0 * rms, effects, n=n)
+
+    leak = Candidate("leakage", "leakage", make_effect("leakage"), [])
+    trials = {"leakage": CandidateTrial("leakage", 1.0, "", status="kept", kept=True)}
+    refits = {"leakage": (stand_in_refit(None, None, [leak.effect], None), leak)}
+    refitted.clear()
+    basis = NominalBaseline(NOISE, 13.0 ** 2 * n, n, 70.0, 0.2, 0.3, None)
+    run = stand_in_run(basis, trials=trials, refits=refits, screen=stand_in_screen, refit=stand_in_refit,
+                       keep_test=lambda c0, c1, n_, k, f0, f1, floor: (c1 < 0.5 * c0, 0.5, "test"))
+    run.several_effects, run.max_findings = True, 3
+    run.on_top = {name: Candidate(name, name, make_effect(name), [])
+                  for name in ("valve_offset", "friction_asymmetry", "valve_dynamics", "external_load")}
+    findings, final = add_findings(run, ["leakage"])
+    assert [f.effect for f in findings] == ["leakage", "friction_asymmetry", "valve_dynamics"] or \
+        [f.effect for f in findings] == ["leakage", "valve_dynamics", "friction_asymmetry"]
+    assert final.rms == 1.0 and {e.name for e in final.effects_} == truth
+    assert "screened on top of the findings" in trials["valve_dynamics"].evidence
+    # with room for two findings only, the third is never refitted
+    run.max_findings = 2
+    for t in trials.values():
+        t.kept = t.effect == "leakage"
+    refitted.clear()
+    findings, _ = add_findings(run, ["leakage"])
+    assert len(findings) == 2 and len(refitted) <= 2
+
+
+def test_drop_one_removes_a_finding_that_only_helped_while_another_was_missing():
+    """With every finding present, each is refitted out: one whose removal costs nothing (a look-alike kept
+    first, made redundant by the later ones) fails the keep test and is dropped, the fit without it final; one
+    whose removal costs much stays."""
+    from pneusim.diagnosis.findings import drop_one
+    from pneusim.diagnosis.result import Finding
+
+    n = 1000
+
+    def stand_in_refit(recording, rig, effects, warm, start_values=None):
+        names = {e.name for e in effects}
+        rms = 1.0 if {"leakage", "friction_asymmetry"} <= names else 6.0
+        return StandInFit(rms, 99.0 if rms < 2 else 90.0, effects, n=n)
+
+    effects = [make_effect(k) for k in ("valve_offset", "leakage", "friction_asymmetry")]
+    final = StandInFit(1.0, 99.0, effects, n=n)
+    trials = {e.name: CandidateTrial(e.name, 1.0, "", status="kept", kept=True) for e in effects}
+    findings = [Finding(e.name, "", {}, 99.0, 1.0) for e in effects]
+    basis = NominalBaseline(NOISE, 30.0 ** 2 * n, n, 0.0, 0.2, 0.3, None)
+    run = stand_in_run(basis, trials=trials, refit=stand_in_refit,
+                       keep_test=lambda c0, c1, n_, k, f0, f1, floor: (c1 < 0.5 * c0, 0.5, "test"))
+    kept, new_final = drop_one(run, findings, final)
+    assert [f.effect for f in kept] == ["leakage", "friction_asymmetry"]
+    assert {e.name for e in new_final.effects_} == {"leakage", "friction_asymmetry"}
+    assert not trials["valve_offset"].kept and "dropped" in trials["valve_offset"].status
+    assert trials["leakage"].kept and "drop-one" in trials["leakage"].status
+    # one finding: nothing to test it against but the nominal model, which its keep test was
+    assert drop_one(run, kept[:1], new_final)[0] == kept[:1]
+
+
+def test_the_time_budget_refuses_a_fit_that_would_end_past_it_and_the_diagnosis_says_so():
+    """A whole fit expected to cost more than is left is not started: the stage raises TimeBudgetExhausted (a
+    PneusimError, reported as a failed fit), every later stage is refused too, and the status names the first
+    step refused; a screening is refused only once the budget is spent."""
+    from pneusim.diagnosis.budget import Budget, TimeBudgetExhausted, gated_stages
+    from pneusim.diagnosis.estimator import DiagnosisStages
+    from pneusim.errors import PneusimError
+
+    calls = []
+    stages = DiagnosisStages(refit=lambda *a, **k: calls.append("refit") or "fit",
+                             screen=lambda *a, **k: calls.append("screen") or {"cost": 1.0})
+    budget = Budget(1000.0)
+    gated = gated_stages(stages, budget, fit_cost_s=10.0)
+    assert gated.refit() == "fit" and gated.screen()["cost"] == 1.0 and budget.status == "complete"
+    tight = Budget(1000.0)
+    tight.seconds = tight.used() + 5.0          # 5 s left: a screening fits, a 10 s fit does not
+    gated = gated_stages(stages, tight, fit_cost_s=10.0)
+    assert gated.screen()["cost"] == 1.0
+    with pytest.raises(TimeBudgetExhausted, match="the refit .*does not fit in the 5 s left") as refused:
+        gated.refit()
+    assert isinstance(refused.value, PneusimError)
+    with pytest.raises(TimeBudgetExhausted):
+        gated.screen()                          # once a step is refused, the rest are too
+    assert calls == ["refit", "screen", "screen"]
+    assert tight.status.startswith("stopped by the time budget: the refit (expected 10 s")
+    with pytest.raises(PneusimError, match="positive number of seconds"):
+        Budget(0.0)
+
+
+def test_a_fit_that_runs_to_the_end_of_the_budget_is_stopped_and_its_result_not_used():
+    """A fit that started within the budget but runs on is stopped at the budget's end by the deadline its
+    evaluations check; whatever it returns after catching that (a half-way fit) is not used: the step raises
+    TimeBudgetExhausted and the status says it was stopped.  Outside a budget, the check does nothing."""
+    import time
+
+    from pneusim.diagnosis.budget import Budget, TimeBudgetExhausted, gated_stages
+    from pneusim.diagnosis.estimator import DiagnosisStages
+    from pneusim.fit import deadline
+
+    evaluations = []
+
+    def long_refit(*args, **kwargs):
+        try:
+            while True:                          # a fit's evaluations, each checking the deadline
+                deadline.check()
+                evaluations.append(time.process_time())
+                sum(i * i for i in range(2000))
+        except deadline.FitDeadlineExceeded:
+            return "a fit stopped half-way"      # a route that catches the stop and returns what it has
+
+    budget = Budget(1000.0)
+    budget.seconds = budget.used() + 0.3
+    gated = gated_stages(DiagnosisStages(refit=long_refit), budget, fit_cost_s=0.0)
+    with pytest.raises(TimeBudgetExhausted, match="ran to the end of the 0 s time budget"):
+        gated.refit()
+    assert evaluations and evaluations[-1] <= budget.started + budget.seconds
+    assert budget.status.startswith("stopped by the time budget: the refit ran to the end")
+    deadline.check()                              # no deadline set: nothing happens
+
+
+def test_mismatch_windows_merge_into_a_few_readable_episodes():
+    """Windows closer than 2 % of the recording join one episode while it stays within 10 % of it; an
+    episode is named by its strongest window (signal, condition), its other signals in ``also_in``; at most
+    MAX_EPISODES, the strongest, in time order."""
+    from pneusim.diagnosis.locate import episodes
+    from pneusim.diagnosis.result import MismatchWindow
+    from pneusim.diagnosis.rules import MAX_EPISODES
+
+    # 100 s: gap 2 s, longest 10 s
+    near = [MismatchWindow(10.0, 10.5, "position_m", "extending", 4.0),
+            MismatchWindow(11.0, 11.5, "pressure_a_Pa", "holding still", 9.0)]
+    assert [(w.t_start_s, w.t_end_s, w.signal, w.condition, w.also_in) for w in episodes(near, 100.0)] == [
+        (10.0, 11.5, "pressure_a_Pa", "holding still", ("position_m",))]
+    # a residual above noise all along (a window every second) is said as episodes of at most 10 s
+    all_along = [MismatchWindow(float(t), t + 0.5, "position_m", "moving", 2.0 + (t == 47)) for t in range(100)]
+    merged = episodes(all_along, 100.0)
+    assert len(merged) == MAX_EPISODES and all(w.t_end_s - w.t_start_s <= 10.0 for w in merged)
+    assert any(w.t_start_s <= 47.0 < w.t_end_s for w in merged)           # the strongest window's episode
+    assert [w.t_start_s for w in merged] == sorted(w.t_start_s for w in merged)
