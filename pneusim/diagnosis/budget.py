@@ -56,10 +56,9 @@ class Budget:
         does not fit in what is left; the first refusal is recorded in :attr:`stopped`."""
         if self.stopped is None and self.used() + max(0.0, cost_s) <= self.seconds:
             return
-        reason = (f"{step} (expected {cost_s:.0f} s of processor time) does not fit in the {max(self.left(), 0.0):.0f} s "
-                  f"left of the {self.seconds:.0f} s time budget")
-        if self.stopped is None:
-            self.stopped = reason
+        reason = (f"{step} (expected {cost_s:.0f} s of processor time) does not fit in the "
+                  f"{max(self.left(), 0.0):.0f} s left of the {self.seconds:.0f} s time budget")
+        self.stop(reason)
         raise TimeBudgetExhausted(f"not started: {reason}")
 
     def stop(self, reason: str) -> None:

@@ -66,8 +66,9 @@ from .locate import episodes, locate_mismatch, named_states
 from .other import other_finding
 from .refits import estimation_cost, fit_from_data_sheet, fit_nominal, noise_levels, refit
 from .result import DiagnosisResult
-from .rules import (MAX_FINDINGS, MAX_FINDINGS_SEVERAL, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, MODEL_SHORT, SCREEN_SAMPLES,
-                    TIME_BUDGET_S, VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE, VALIDATION_MOTION_NOISE, WINDOW_SAMPLES,
+from .rules import (MAX_FINDINGS, MAX_FINDINGS_SEVERAL, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, MODEL_SHORT,
+                    SCREEN_SAMPLES, TIME_BUDGET_S, VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE,
+                    VALIDATION_MOTION_NOISE, WINDOW_SAMPLES,
                     keep_test_text, noise_floor_points, passes_test, screening_route, validation_room)
 from .run import DiagnosisRun, NominalBaseline
 from .signatures import compute_signatures

@@ -16,7 +16,8 @@ import numpy as np
 from scipy import stats
 
 from .result import MismatchWindow
-from .rules import EPISODE_GAP, EPISODE_LENGTH, FALSE_ALARM, LOCATE_WINDOW_S, LOCATE_WINDOW_SAMPLES, MAX_EPISODES, MAX_WINDOWS
+from .rules import (EPISODE_GAP, EPISODE_LENGTH, FALSE_ALARM, LOCATE_WINDOW_S, LOCATE_WINDOW_SAMPLES, MAX_EPISODES,
+                    MAX_WINDOWS)
 
 __all__ = ["operating_conditions", "locate_mismatch", "velocity_estimate", "named_states", "episodes"]
 
