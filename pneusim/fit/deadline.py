@@ -20,7 +20,7 @@ import time
 
 from ..errors import FitError
 
-__all__ = ["FitDeadlineExceeded", "cpu_deadline", "check"]
+__all__ = ["FitDeadlineExceeded", "cpu_deadline", "check", "checked"]
 
 
 class FitDeadlineExceeded(FitError):
@@ -55,3 +55,16 @@ def check() -> None:
         for block in _active:
             block.reached = block.reached or time.process_time() > block.at_s
         raise FitDeadlineExceeded("the fit was stopped: the processor-time deadline of its caller has passed")
+
+
+def checked(step):
+    """``step`` itself where no deadline is set, else ``step`` that first calls :func:`check`: for a loop of many
+    short steps (a filter pass integrates one sample at a time, and where the model is stiff at the point tried a
+    pass can take minutes)."""
+    if not _active:
+        return step
+
+    def step_checked(*args, **kwargs):
+        check()
+        return step(*args, **kwargs)
+    return step_checked

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import PneusimError
+from ..errors import SolverError
 from ..solver.backends import state_scales
 from ..solver.sensitivity import command_schedule
 from . import deadline
@@ -96,7 +96,9 @@ def run_filter(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray, proc
     jacobian = np.zeros((data.n_samples, rows.size, nf + n) if gradients else (1, rows.size, nf + n))
     Z0 = np.zeros((n, nf + n))   # d x / d (theta, x_first scaled)
     Z0[:, nf:] = np.diag(pb.x_scale)
-    ok = filter_pass(sim.step_into, PneusimError, np.ascontiguousarray(data.time_s, dtype=float), _sample_schedules(pb),
+    # a sample that cannot be integrated is the filter's to take; a caller's deadline ends the pass at its next sample
+    ok = filter_pass(deadline.checked(sim.step_into), SolverError, np.ascontiguousarray(data.time_s, dtype=float),
+                     _sample_schedules(pb),
                      np.ascontiguousarray(x_first, dtype=float), np.diag(first_state_std(pb) ** 2), Z0,
                      np.asarray(process, float) ** 2, 1.0 / pb.x_scale, np.ascontiguousarray(x_lo, dtype=float),
                      np.ascontiguousarray(x_hi, dtype=float), rows, values, sigma, seen, pb.position_index,

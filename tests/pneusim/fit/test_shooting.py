@@ -150,3 +150,29 @@ def test_screening_cost_is_the_trust_regions_objective(window):
     end_v, _, _ = trust_region(pb, v, lower, upper, max_evaluations=6, defect_weight=DEFECT_WEIGHT)
     pb._cache_key = None
     assert _total_cost(pb, end_v) == objective(end_v) <= start
+
+
+def test_a_filter_pass_stops_at_its_next_sample_once_a_callers_deadline_has_passed(window, monkeypatch):
+    """A filter pass integrates one sample at a time, and where the model is stiff at the point tried one pass can
+    take minutes: under a caller's processor-time deadline (:func:`pneusim.fit.deadline.cpu_deadline`) it checks
+    before every sample and stops there, raising :class:`~pneusim.fit.deadline.FitDeadlineExceeded`; without one
+    it runs every sample.  The processor clock here is a counter, one tick a look."""
+    from types import SimpleNamespace
+
+    from pneusim.fit import deadline
+    from pneusim.fit.tracking import process_std, run_filter
+
+    pb, _, v, _ = window
+    theta, starts = pb.split(v)
+    sim, steps = pb.sims[0], []
+    step = sim.step_into
+    monkeypatch.setattr(sim, "step_into", lambda *args: steps.append(1) or step(*args))
+    full = run_filter(pb, theta, starts[0], process_std(pb, 1e-3))
+    assert full["ok"] and len(steps) == pb.data.n_samples - 1
+    ticks = iter(range(10 ** 6))
+    monkeypatch.setattr(deadline, "time", SimpleNamespace(process_time=lambda: float(next(ticks))))
+    steps.clear()
+    with deadline.cpu_deadline(100.0) as block:
+        with pytest.raises(deadline.FitDeadlineExceeded):
+            run_filter(pb, theta, starts[0], process_std(pb, 1e-3))
+    assert block.reached and 0 < len(steps) < 120
