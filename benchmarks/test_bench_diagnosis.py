@@ -26,7 +26,7 @@ vocabulary effects, and physics outside the vocabulary as ``{"effect": "other", 
 The table is written to ``results/diagnosis-<set>/score.md`` beside the per-recording results and
 ``summary.csv``, and to ``docs/results/diagnosis-<set>.md`` with the commit, machine, date and command
 (:mod:`results_file`).  ``PNEUSIM_DIAGNOSIS_LIMIT=N`` diagnoses the first N files only (a quick look);
-``PNEUSIM_DIAGNOSIS_SEVERAL=1`` runs ``--several-effects``;
+``PNEUSIM_DIAGNOSIS_SEVERAL=1`` runs ``--several-effects``, ``=0`` ``--no-several-effects``;
 ``PNEUSIM_DIAGNOSIS_RIG=paper2-enfield`` only the recordings whose ``rig`` metadata names that rig
 (the table then goes to ``results/diagnosis-<set>-<rig>/``); ``PNEUSIM_DIAGNOSIS_HALF=odd`` or ``even``
 only the recordings whose number is odd or even (``diagnosis-<set>-odd``): develop on one half, score the
@@ -195,7 +195,7 @@ def test_diagnose_practice_set(benchmark):
     suffix = (f"-{RIG}" if RIG else "") + (f"-{HALF}" if HALF else "")
     out = HERE / "results" / f"diagnosis-{SET.name}{suffix}"
     workers = int(os.environ.get("PNEUSIM_DIAGNOSIS_WORKERS", "1"))
-    several = os.environ.get("PNEUSIM_DIAGNOSIS_SEVERAL", "") not in ("", "0")
+    several = {"": None, "0": False}.get(os.environ.get("PNEUSIM_DIAGNOSIS_SEVERAL", ""), True)
     rows = benchmark.pedantic(lambda: diagnose_many(files, out, workers=workers, report=True, progress=True,
                                                     several_effects=several),
                               rounds=1, iterations=1)

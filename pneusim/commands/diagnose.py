@@ -55,15 +55,18 @@ def register(sub) -> None:
                    help="leading candidates confirmed by a whole refit, one per look-alike family (default 3)")
     p.add_argument("--max-lookalikes", type=int, default=2, metavar="K",
                    help="look-alikes of the winning candidate refitted after them (default 2)")
-    p.add_argument("--several-effects", action="store_true",
-                   help="search for several effects at once (up to 3, each tested with the others present) and "
-                        "say 'other' where the findings leave physics unexplained, within a time budget")
+    p.add_argument("--several-effects", action=argparse.BooleanOptionalAction, default=None,
+                   help="search for several effects at once from the first finding on (up to 3, each tested with "
+                        "the others present, 'other' where the findings leave physics unexplained, within a time "
+                        "budget); --no-several-effects never goes beyond the one-effect-first search (default: "
+                        "go on from its findings where they leave the recording unexplained)")
     p.add_argument("--max-findings", type=int, default=None, metavar="K",
                    help="at most this many vocabulary effects modelled together (default 2; 3 with "
                         "--several-effects)")
     p.add_argument("--time-budget", type=float, default=None, metavar="SECONDS",
                    help="processor seconds a recording's diagnosis may take: no fit runs past it, and the result, "
-                        "with what was found before, says so (default: none; 240 with --several-effects)")
+                        "with what was found before, says so (default: ten times the nominal fit's, at least "
+                        "240; 240 with --several-effects; none with --no-several-effects)")
     p.add_argument("--json", metavar="OUT.json", help="write the JSON result (one recording)")
     p.add_argument("--report", metavar="DIR", help="write the report folder (open DIR/index.html); for "
                                                    "several recordings, the folder of all reports and the summary")

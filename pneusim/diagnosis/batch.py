@@ -31,7 +31,7 @@ from .report import write_report
 __all__ = ["diagnose_many", "expand_recordings", "output_names", "SUMMARY_COLUMNS"]
 
 SUMMARY_COLUMNS = ("recording", "status", "findings", "nominal_fit_percent", "final_fit_percent",
-                   "improvement_points", "mismatch_windows", "seconds", "diagnosis_status", "error")
+                   "improvement_points", "mismatch_windows", "seconds", "diagnosis_status", "diagnosis_search", "error")
 
 _SUFFIXES = (".csv", ".mat")
 #: names an output may not take (the folder's own files)
@@ -114,7 +114,8 @@ def diagnose_one(path: str, rig, out_dir: str | None, report: bool, options: dic
     name = name or Path(path).stem
     row = {"recording": label or Path(path).name, "name": name, "status": "failed", "findings": "",
            "nominal_fit_percent": None, "final_fit_percent": None, "improvement_points": None,
-           "mismatch_windows": None, "seconds": None, "diagnosis_status": None, "error": None, "result": None}
+           "mismatch_windows": None, "seconds": None, "diagnosis_status": None, "diagnosis_search": None, "error": None,
+           "result": None}
     try:
         recording = read_recording(path)
         rig_used = recording_rig(recording, rig, where=path)
@@ -126,7 +127,8 @@ def diagnose_one(path: str, rig, out_dir: str | None, report: bool, options: dic
                    improvement_points=(d["final_fit_percent"] - d["nominal"]["fit_percent"]
                                        if d["final_fit_percent"] is not None and d["nominal"]["fit_percent"] is not None
                                        else None),
-                   mismatch_windows=len(d["mismatch"]), diagnosis_status=d.get("status", "complete"), result=d)
+                   mismatch_windows=len(d["mismatch"]), diagnosis_status=d.get("status", "complete"),
+                   diagnosis_search=d.get("search"), result=d)
         if out_dir:
             write_json_atomic(Path(out_dir, f"{name}.json"), d, indent=1, allow_nan=False)
             if report:

@@ -17,7 +17,7 @@ __all__ = ["diagnose", "MIN_SAMPLES"]
 def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = VALIDATION_FRACTION,
              max_refits: int = MAX_REFITS, max_lookalikes: int = MAX_LOOKALIKES, max_findings: int | None = None,
              screen_samples: int | None = None, progress: bool = False,
-             several_effects: bool = False, time_budget_s: float | None = None) -> DiagnosisResult:
+             several_effects: bool | None = None, time_budget_s: float | None = None) -> DiagnosisResult:
     """Diagnose what physics the nominal model leaves out of ``recording``.
 
     Parameters
@@ -42,14 +42,17 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
         Estimation samples the screening uses (default :data:`.rules.SCREEN_SAMPLES`).
     progress : bool
         Print one line per stage to standard error.
-    several_effects : bool
-        Search for several effects at once: every vocabulary variant screened on top of the findings, one more
-        at a time, each finding tested with the others present (drop-one), ``other`` after the findings where
-        they leave physics unexplained, and a time budget (see :mod:`.estimator`).
+    several_effects : bool or None
+        The several-effects search (every vocabulary variant screened on top of the findings, one more at a
+        time, each finding tested with the others present (drop-one), ``other`` after the findings where they
+        leave physics unexplained, under a time budget; see :mod:`.estimator`).  None (default): where the
+        one-effect-first search's findings leave the recording unexplained, it goes on from them; True: from
+        the first finding on; False: never.
     time_budget_s : float, optional
         Processor seconds the diagnosis may take: no fit that would end past it is started, one that runs past
-        it is stopped, and the result (``status``) says which step; default :data:`.rules.TIME_BUDGET_S` with
-        ``several_effects``, else no limit.
+        it is stopped, and the result (``status``) says which step; default :func:`.rules.default_budget_s` (ten
+        nominal fits' processor time, at least :data:`.rules.TIME_BUDGET_S`), :data:`.rules.TIME_BUDGET_S` with
+        ``several_effects=True``, no limit with ``several_effects=False``.
 
     Returns
     -------

@@ -26,10 +26,15 @@
    leaves a residual well above noise, an ``other`` finding: where, under which conditions, what it looks like,
    and which vocabulary effects came closest and why they failed.
 
-Steps 7's search beyond a second effect, 8 and 9's ``other`` after findings are those of ``several_effects=True``
-(:data:`~.rules.MAX_FINDINGS_SEVERAL` findings, every vocabulary variant searched on top, a time budget); without
-it the search is the one-effect-first one: a second effect among the candidates the first round kept or set
-aside, ``other`` only where nothing was kept, no budget unless one is given.
+Step 7 is first the one-effect-first search: a second effect among the candidates the first round kept or set
+aside.  Where its findings leave the model above noise (:func:`.other.above_noise`: a residual above noise on the
+estimation part and room on the validation part for a refit to pass the keep test), the several-effects search
+goes on from them: every vocabulary variant not yet refitted on top is screened on top, up to
+:data:`~.rules.MAX_FINDINGS_SEVERAL` findings; then 8 (where it added a finding) and 9's ``other`` after the
+findings.  The time budget scales with the nominal fit's cost (:func:`.rules.default_budget_s`).
+``several_effects=True`` runs the several-effects search from the first finding on, under
+:data:`~.rules.TIME_BUDGET_S`; ``False`` never goes on (``other`` only where nothing was kept, no budget unless one
+is given).
 
 Every fit and screening after the nominal fit first asks the time budget (:mod:`.budget`): one that would end
 past it is not started, and the diagnosis returns what it has, its ``status`` naming the step refused.
@@ -60,16 +65,17 @@ from .around_nominal import confirm_around_nominal, screen_around_nominal
 from .candidates import candidate_list, polished_costs, screen
 from .delay import scan_kept_delay, screened_delays
 from .budget import Budget, gated_stages
-from .findings import add_findings, drop_one
+from .findings import add_findings, drop_one, more_findings
 from .from_data_sheet import confirm_from_data_sheet, mismatch_window, one_start_each, screen_from_data_sheet
 from .locate import episodes, locate_mismatch, named_states
-from .other import other_finding
+from .other import above_noise, other_finding
 from .refits import estimation_cost, fit_from_data_sheet, fit_nominal, noise_levels, refit
 from .result import DiagnosisResult
 from .rules import (MAX_FINDINGS, MAX_FINDINGS_SEVERAL, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, MODEL_SHORT,
                     SCREEN_SAMPLES, TIME_BUDGET_S, VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE,
                     VALIDATION_MOTION_NOISE, WINDOW_SAMPLES,
-                    keep_test_text, noise_floor_points, passes_test, screening_route, validation_room)
+                    default_budget_s, keep_test_text, noise_floor_points, passes_test, screening_route,
+                    validation_room)
 from .run import DiagnosisRun, NominalBaseline
 from .signatures import compute_signatures
 
@@ -90,6 +96,8 @@ class DiagnosisStages:
     screen_from_data_sheet, confirm_from_data_sheet : far above noise (:mod:`.from_data_sheet`)
     delay_scan : ``(run) -> None`` (:func:`.delay.scan_kept_delay`)
     findings : ``(run, kept) -> (findings, final fit)`` (:func:`.findings.add_findings`)
+    more_findings : ``(run, findings, final fit) -> (findings, final fit)``, the several-effects search on top of
+        the one-effect-first search's findings (:func:`.findings.more_findings`)
     drop_one : ``(run, findings, final fit) -> (findings, final fit)`` (:func:`.findings.drop_one`)
     other : ``(run, final fit, duration_s, search_ended) -> Finding or None`` (:func:`.other.other_finding`)
 
@@ -113,6 +121,7 @@ class DiagnosisStages:
     confirm_from_data_sheet: Callable = confirm_from_data_sheet
     delay_scan: Callable = scan_kept_delay
     findings: Callable = add_findings
+    more_findings: Callable = more_findings
     drop_one: Callable = drop_one
     other: Callable = other_finding
     screen: Callable = screen
@@ -192,14 +201,15 @@ class Diagnosis:
 
     def __init__(self, *, effects=None, validation_fraction: float = VALIDATION_FRACTION,
                  max_refits: int = MAX_REFITS, max_lookalikes: int = MAX_LOOKALIKES, max_findings: int | None = None,
-                 screen_samples: int | None = None, progress: bool = False, several_effects: bool = False,
+                 screen_samples: int | None = None, progress: bool = False, several_effects: bool | None = None,
                  time_budget_s: float | None = None, stages: DiagnosisStages = DiagnosisStages()):
         self.effects, self.validation_fraction = effects, validation_fraction
         self.several_effects = several_effects
         if max_findings is None:
             max_findings = MAX_FINDINGS_SEVERAL if several_effects else MAX_FINDINGS
-        if time_budget_s is None:
+        if time_budget_s is None and several_effects is not None:
             time_budget_s = TIME_BUDGET_S if several_effects else math.inf
+        #: processor seconds; None: set once the nominal fit's cost is known (:func:`.rules.default_budget_s`)
         self.time_budget_s = time_budget_s
         self.max_refits, self.max_lookalikes, self.max_findings = max_refits, max_lookalikes, max_findings
         self.screen_samples, self.progress, self.stages = screen_samples, progress, stages
@@ -214,14 +224,17 @@ class Diagnosis:
         recording's ``rig`` metadata); raises :class:`~pneusim.errors.PneusimError` like
         :func:`~pneusim.diagnosis.diagnose`."""
         started, cpu_started = time.perf_counter(), time.process_time()
-        budget = Budget(self.time_budget_s)
+        budget = Budget(math.inf if self.time_budget_s is None else self.time_budget_s)
         recording, rig = _load(recording, rig)
         name = _name(recording)
         candidate_list(rig, recording.sample_time_s, self.effects)   # an unknown effect is refused before any work
         _check_input(recording, rig, self.validation_fraction)
         nominal = self._nominal_fit(recording, rig, name, budget)                             # 1. nominal fit
         t_nominal = time.perf_counter() - started
-        stages = gated_stages(self.stages, budget, budget.used())
+        nominal_cpu_s = budget.used()
+        if self.time_budget_s is None:
+            budget.seconds = default_budget_s(nominal_cpu_s)
+        stages = gated_stages(self.stages, budget, nominal_cpu_s)
         noise = noise_levels(recording, nominal.rig)
         states = named_states(nominal)
         windows, _ = self.stages.locate(recording, nominal.rig, states, noise)                # 2. locate
@@ -240,15 +253,20 @@ class Diagnosis:
         t_first = time.perf_counter()
         kept = run.kept_by_fit()
         findings, final = stages.findings(run, kept) if kept else ([], nominal)               # 7. findings
+        several = self.several_effects
+        search = "several effects" if several else "one effect first"
+        if several is None and findings and above_noise(final, run.noise, run.baseline.floor):
+            findings, final, several = self._go_on(run, findings, final, name)
+            search = "one effect first, then several"
         t_on_top = time.perf_counter()
-        if self.several_effects:
-            findings, final = stages.drop_one(run, findings, final)                           # 8. drop-one
+        if several:
+            findings, final = run.stages.drop_one(run, findings, final)                       # 8. drop-one
         t_drop_one = time.perf_counter()
         duration_s = float(recording.time_s[-1] - recording.time_s[0])
-        ended = _search_ended(budget, findings, kept, self.max_findings)
-        if findings and not self.several_effects:
+        ended = _search_ended(budget, findings, kept, run.max_findings)
+        if findings and not run.several_effects:
             ended = None      # the one-effect-first search says ``other`` only where nothing was kept
-        other = stages.other(run, final, duration_s, ended) if ended is not None else None   # 9. other
+        other = run.stages.other(run, final, duration_s, ended) if ended is not None else None  # 9. other
         findings += [other] if other is not None else []
         basis = run.baseline
         result = DiagnosisResult(
@@ -258,7 +276,7 @@ class Diagnosis:
             nominal={"fit_percent": basis.fit0, "parameters": nominal.estimates},
             mismatch=windows, findings=findings, final_fit_percent=final.fit_percent,
             final_parameters={k: final.estimates[k] for k in nominal.estimates if k in final.estimates},
-            episodes=episodes(windows, duration_s), status=budget.status,
+            episodes=episodes(windows, duration_s), status=budget.status, search=search,
             candidates=[run.trials[k] for k in ranked] + [t for k, t in run.trials.items() if k not in ranked],
             test=keep_test_text(basis.floor, basis.fit0, validation_room(basis.fit0, basis.floor)),
             seconds=time.perf_counter() - started,
@@ -272,6 +290,18 @@ class Diagnosis:
         self._say(name, f"findings {', '.join(result.effects) or 'none'}; final fit {final.fit_percent:.2f} % "
                         f"({result.seconds:.0f} s)")
         return result
+
+    def _go_on(self, run: DiagnosisRun, findings: list, final, name: str):
+        """7, continued: the one-effect-first search's ``findings`` (their fit ``final``) leave the model above
+        noise, and the several-effects search goes on from them (:func:`.findings.more_findings`), up to
+        :data:`~.rules.MAX_FINDINGS_SEVERAL` findings, within what is left of the budget.  Returns ``(findings,
+        final, added)``, ``added`` whether it added a finding (drop-one then tests them all)."""
+        run.several_effects, run.max_findings = True, max(self.max_findings, MAX_FINDINGS_SEVERAL)
+        n_before = len(findings)
+        self._say(name, f"{', '.join(f.effect for f in findings)} leave(s) the model above noise "
+                        f"(final fit {final.fit_percent:.2f} %): searching for more effects on top")
+        findings, final = run.stages.more_findings(run, findings, final)
+        return findings, final, len(findings) > n_before
 
     def _nominal_fit(self, recording, rig, name: str, budget: Budget):
         """1. The nominal fit (``stages.nominal_fit``); a recording it cannot start on, or whose nominal fit

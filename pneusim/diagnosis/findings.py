@@ -10,12 +10,13 @@ import math
 import time
 
 from ..model.effects import EFFECTS
+from .candidates import family_of
 from .from_data_sheet import data_sheet_start
 from .refits import effect_at_screened, effect_parameters, estimation_cost
 from .result import CandidateTrial, Finding
 from .rules import MIN_EXPLAINED, MODEL_SHORT, ON_TOP_REFITS, bic_penalty, is_solver_failure
 
-__all__ = ["add_findings", "drop_one", "ON_TOP_REFITS"]
+__all__ = ["add_findings", "more_findings", "drop_one", "ON_TOP_REFITS"]
 
 
 def add_findings(run, kept: list) -> tuple[list, object]:
@@ -40,9 +41,38 @@ def add_findings(run, kept: list) -> tuple[list, object]:
     findings = [_finding(first, final, run.baseline.fit0, run.trials[first])]
     pool = {eff: run.refits[eff][1] for eff in kept[1:]}
     pool.update(run.second_only)
-    for label, c in (run.on_top.items() if run.several_effects else ()):
-        if c.name != first and c.name not in pool and label not in pool:
-            pool[label] = c
+    if run.several_effects:
+        pool.update(_wide_pool(run, findings, pool))
+    return _search_on_top(run, findings, final, pool)
+
+
+def more_findings(run, findings: list, final) -> tuple[list, object]:
+    """The several-effects search continued on top of the one-effect-first search's ``findings`` (their fit
+    ``final``): every candidate of ``run.on_top`` not yet a finding and not yet refitted on top, screened on top
+    of ``final`` and refitted as in :func:`add_findings`, up to ``run.max_findings``.  Returns ``(findings,
+    final)``.
+
+    Why: where the one-effect-first search leaves the recording unexplained, the effect still missing is often
+    one the first round never confirmed (it fitted badly alone while the first was missing); candidates already
+    refitted on top of the same findings would fail the same test again."""
+    return _search_on_top(run, findings, final, _wide_pool(run, findings, {}))
+
+
+def _wide_pool(run, findings: list, pool: dict) -> dict:
+    """Every candidate of ``run.on_top`` (the vocabulary's variants) that is not a finding or a look-alike of one
+    (:func:`.candidates.family_of`), not in ``pool`` and not refitted on top before, by label.
+
+    Why not a finding's look-alikes: the first round already fitted them beside it (its look-alike round), and on
+    top of it a look-alike absorbs what the finding's fit left where that fit stopped in a bent basin -- a dead
+    band of 4 mV on top of an offset, +4.4 points, on a recording with the offset alone; a spool lag on top of a
+    load, where the delay was missing; pressure-dependent friction on top of an asymmetry (``docs/decisions/0107``)."""
+    alike = {name for f in findings for name in family_of(f.effect)}
+    return {label: c for label, c in run.on_top.items()
+            if c.name not in alike and c.name not in pool and label not in pool and label not in run.refitted_on_top}
+
+
+def _search_on_top(run, findings: list, final, pool: dict) -> tuple[list, object]:
+    """One more finding at a time from ``pool`` (:func:`_one_more`) up to ``run.max_findings``."""
     while pool and len(findings) < run.max_findings:
         added, final = _one_more(run, findings, final, pool)
         if not added:
@@ -71,6 +101,7 @@ def _one_more(run, findings: list, final, pool: dict) -> tuple[bool, object]:
         if math.isfinite(gain) and not score_top > MIN_EXPLAINED * base_top:
             break
         c = pool.pop(key)
+        run.refitted_on_top.update({key, c.label})    # the first round's pools key by effect, run.on_top by label
         screened = f" (screening explains {gain:.0f} of {base_top:.0f} there)" if math.isfinite(gain) else ""
         tried = _refit_on_top(run, names, final, c, screened, scores[key][2] if run.several_effects else None)
         if tried is None:

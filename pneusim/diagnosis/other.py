@@ -19,19 +19,32 @@ import math
 from .locate import episodes, named_states
 from .refits import estimation_cost
 from .result import Finding
-from .rules import CLEARLY_SHORT, MAX_CLOSEST, OTHER_RESIDUAL
+from .rules import CLEARLY_SHORT, FURTHER_SEARCH_RESIDUAL, MAX_CLOSEST, OTHER_RESIDUAL, validation_room
 
-__all__ = ["other_finding", "unexplained", "closest_candidates"]
+__all__ = ["other_finding", "unexplained", "above_noise", "closest_candidates"]
 
 
 def unexplained(fit, noise: dict, floor_points: float) -> tuple[bool, float]:
     """Whether ``fit`` leaves physics unexplained: its estimation residuals (no defects) above
     :data:`~.rules.OTHER_RESIDUAL` times the noise and its validation error above :data:`~.rules.CLEARLY_SHORT`
     times the noise floor ``F``; and that residual's rms in noise units."""
-    cost, count = estimation_cost(fit, noise, defects=False)
-    ratio = math.sqrt(cost / max(count, 1))
+    ratio = residual_ratio(fit, noise)
     short = not math.isfinite(fit.fit_percent) or 100.0 - fit.fit_percent > CLEARLY_SHORT * floor_points
     return ratio > OTHER_RESIDUAL and short, ratio
+
+
+def above_noise(fit, noise: dict, floor_points: float) -> bool:
+    """Whether ``fit`` (the one-effect-first search's findings) is still above noise with room for more: its
+    estimation residuals (no defects) above :data:`~.rules.FURTHER_SEARCH_RESIDUAL` times the noise and its
+    validation error above what a refit needs to pass the keep test (:func:`~.rules.validation_room`)."""
+    room = validation_room(fit.fit_percent, floor_points) if math.isfinite(fit.fit_percent) else math.inf
+    return residual_ratio(fit, noise) > FURTHER_SEARCH_RESIDUAL and room > 0
+
+
+def residual_ratio(fit, noise: dict) -> float:
+    """The rms of ``fit``'s estimation residuals (no defects) in noise units."""
+    cost, count = estimation_cost(fit, noise, defects=False)
+    return math.sqrt(cost / max(count, 1))
 
 
 def _reason(status: str) -> str:

@@ -316,6 +316,9 @@ def _markdown(result: DiagnosisResult, evidence_files) -> str:
                       "No vocabulary effect explains it (see the closest candidates below)."]
     if result.status != "complete":
         lines += ["", f"**Incomplete**: {result.status}; the findings are those made before it."]
+    if result.search == "one effect first, then several":
+        lines += ["", "The first findings left the model above noise: the search went on for more effects on top "
+                      "of them."]
     lines += ["", "| model | validation fit of the position (%) |", "|---|---|",
               f"| nominal (fitted) | {result.nominal['fit_percent']:.2f} |"]
     acc = []

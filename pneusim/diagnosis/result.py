@@ -146,6 +146,11 @@ class DiagnosisResult:
     status : str
         ``"complete"``, or ``"stopped by the time budget: ..."`` naming the first step the budget refused (the
         result then holds what was found before it).
+    search : str
+        How far the search for findings went: ``"one effect first"`` (a second effect among the candidates the
+        first round kept or set aside), ``"one effect first, then several"`` (those findings left the model above
+        noise and the several-effects search went on from them) or ``"several effects"`` (from the first finding
+        on, ``several_effects=True``).
     episodes : list of MismatchWindow
         The nominal fit's mismatch windows merged into a few episodes (:func:`.locate.episodes`).
     final_parameters : dict
@@ -171,6 +176,7 @@ class DiagnosisResult:
     test: str = ""
     seconds: float = 0.0
     status: str = "complete"
+    search: str = "one effect first"
     episodes: list = field(default_factory=list)
     final_parameters: dict = field(default_factory=dict)
     timing: dict = field(default_factory=dict)
@@ -200,6 +206,7 @@ class DiagnosisResult:
             "final_parameters": {k: _num(v) for k, v in self.final_parameters.items()},
             "episodes": [w.to_dict() for w in self.episodes],
             "status": self.status,
+            "search": self.search,
             "candidates": [c.to_dict() for c in self.candidates],
             "test": self.test,
             "timing": {"total_s": _num(self.seconds, 4), **{k: _num(v, 4) for k, v in self.timing.items()}},

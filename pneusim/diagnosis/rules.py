@@ -34,7 +34,7 @@ __all__ = [
     "RIVAL_WINDOW", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS",
     "MIN_IMPROVEMENT_POINTS", "ERROR_SHRINK", "CLEARLY_SHORT", "AT_NOISE", "PERFECT_ERROR",
     "DELAY_SCAN_ERROR_RATIO", "SCAN_FACTOR", "SCAN_REFITS", "DELAY_GRID_PER_SAMPLE", "MIN_DELAY_SAMPLES",
-    "ON_TOP_REFITS", "OTHER_RESIDUAL", "MAX_CLOSEST", "TIME_BUDGET_S", "COMMAND_MAP_SPAN", "COMMAND_MAP_BINS",
+    "ON_TOP_REFITS", "OTHER_RESIDUAL", "FURTHER_SEARCH_RESIDUAL", "MAX_CLOSEST", "TIME_BUDGET_S", "BUDGET_NOMINAL_FITS", "default_budget_s", "COMMAND_MAP_SPAN", "COMMAND_MAP_BINS",
     "SOLVER_FAILURES",
     "bic_penalty", "information_gain", "noise_floor_points", "validation_room", "passes_test", "keep_test_text",
     "screening_route", "is_solver_failure", "rules_table", "table_markdown",
@@ -168,12 +168,20 @@ ON_TOP_REFITS = 2
 #: (normalised residual) with nothing kept, a nominal residual above this (the residuals alone, not the
 #: continuity defects a penalty fit left open) in mismatch windows is reported as ``other``
 OTHER_RESIDUAL = 3.0
+#: (normalised residual) where the one-effect-first search's findings leave the estimation residuals (without the
+#: defects) above this, the fit's own "above noise" level, and room on the validation part for a refit to pass the
+#: keep test, the several-effects search goes on from them: the model is still above noise
+FURTHER_SEARCH_RESIDUAL = fit_rules.ABOVE_NOISE_WARNING
 #: (candidates) the ``other`` finding names at most this many closest vocabulary candidates, with why each failed
 MAX_CLOSEST = 3
-#: (s of processor time) with several effects searched for, a diagnosis starts no fit that would end past this and
-#: stops one that runs past it, unless told otherwise: it returns what it has, its status naming the step refused
-#: (five minutes of wall time on a busy two-core machine); the one-effect-first search has none unless told
+#: (s of processor time) with several effects searched for from the first finding on (``several_effects=True``), a
+#: diagnosis starts no fit that would end past this and stops one that runs past it, unless told otherwise: it
+#: returns what it has, its status naming the step refused (five minutes of wall time on a busy two-core machine)
 TIME_BUDGET_S = 240.0
+#: (nominal fits) by default a diagnosis may cost this many times its nominal fit's processor time, and at least
+#: TIME_BUDGET_S: a recording whose every fit is slow gets the same number of fits as one whose fits are quick, and
+#: none runs unbounded (the default search took a median 4.8 nominal fits on practice2, where it had no budget)
+BUDGET_NOMINAL_FITS = 10.0
 
 # ------------------------------------------------------------------------------------------------ the report
 #: (fraction of the valve's span) the command-velocity map shows commands this close to null, where a dead band's
@@ -201,6 +209,12 @@ def noise_floor_points(recording, n_est: int, noise: dict) -> float:
     y = recording.position_m[n_est:]
     den = float(np.linalg.norm(y - y.mean()))
     return 100.0 * noise["position_m"] * math.sqrt(y.size) / den if den > 0 else float("inf")
+
+
+def default_budget_s(nominal_cpu_s: float) -> float:
+    """The default diagnosis's time budget, processor seconds: :data:`BUDGET_NOMINAL_FITS` times the nominal fit's
+    processor time ``nominal_cpu_s``, at least :data:`TIME_BUDGET_S`."""
+    return max(TIME_BUDGET_S, BUDGET_NOMINAL_FITS * nominal_cpu_s)
 
 
 def validation_room(fit0: float, floor_points: float) -> float:

@@ -6,7 +6,7 @@ baseline every refit is compared with (:class:`NominalBaseline`), the options, t
 records its outcome there: a :class:`~.result.CandidateTrial` per effect (``trials``), the kept and rejected
 refits (``refits``, ``{effect: (fit, candidate)}``), the candidates left to the screening on top of the
 first finding (``second_only``, ``{effect: candidate}``), and every candidate a search on top of the findings
-screens (``on_top``, ``{label: candidate}``).  A test builds one with stand-in stages and runs one
+screens (``on_top``, ``{label: candidate}``) and the labels already refitted on top (``refitted_on_top``).  A test builds one with stand-in stages and runs one
 step alone.
 """
 
@@ -59,6 +59,8 @@ class DiagnosisRun:
         ``say(message)``: one progress line.
     trials, refits, second_only, on_top : dict
         What the steps found (see the module docstring).
+    refitted_on_top : set
+        Labels of the candidates refitted on top of findings (none is refitted twice on top of the same ones).
     """
 
     recording: object
@@ -76,6 +78,7 @@ class DiagnosisRun:
     refits: dict = field(default_factory=dict)
     second_only: dict = field(default_factory=dict)
     on_top: dict = field(default_factory=dict)
+    refitted_on_top: set = field(default_factory=set)
 
     @property
     def noise(self) -> dict:

@@ -1,4 +1,5 @@
-"""Several effects at once (``several_effects=True``), recovered from our own simulations: each found, its parameters within their
+"""Several effects at once (``several_effects=True``, and the default search going on where it leaves the recording
+unexplained), recovered from our own simulations: each found, its parameters within their
 uncertainty of the truth, the report's plots drawn with their axes labelled.
 
 The recordings are those of ``test_diagnosis`` (the paper-2 rig with every nominal free parameter off its data
@@ -84,10 +85,12 @@ def test_the_report_draws_every_plot_with_its_axes_labelled(two_effects, tmp_pat
 
 
 @pytest.mark.minutes
-def test_three_effects_at_once_are_all_found(tmp_path):
-    """A dead band, a constant load and seals that drag twice as hard retracting: each found on top of the
-    ones before it, all kept with the others present."""
-    _recovered(diagnose(_simulate(tmp_path, _effects(THREE)), several_effects=True), THREE)
+def test_three_effects_at_once_are_all_found_by_the_default_search(tmp_path):
+    """A dead band, a constant load and seals that drag twice as hard retracting, diagnosed with the default
+    options: the one-effect-first search models two effects at most, and where they leave the recording
+    unexplained the several-effects search goes on from them; each found on top of the ones before it, all
+    kept with the others present."""
+    _recovered(diagnose(_simulate(tmp_path, _effects(THREE))), THREE)
 
 
 @pytest.mark.minutes

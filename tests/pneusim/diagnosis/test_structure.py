@@ -143,7 +143,7 @@ def test_diagnose_keeps_its_signature():
     defaults = {name: p.default for name, p in signature.parameters.items()}
     assert defaults == {"recording": inspect.Parameter.empty, "rig": None, "effects": None, "validation_fraction": 0.3,
                         "max_refits": 3, "max_lookalikes": 2, "max_findings": None, "screen_samples": None,
-                        "progress": False, "several_effects": False, "time_budget_s": None}
+                        "progress": False, "several_effects": None, "time_budget_s": None}
 
 
 @pytest.mark.parametrize("path", MODULES, ids=lambda p: p.name)
