@@ -10,7 +10,6 @@ import math
 import time
 
 from ..model.effects import EFFECTS
-from .candidates import family_of
 from .from_data_sheet import data_sheet_start
 from .refits import effect_at_screened, effect_parameters, estimation_cost
 from .result import CandidateTrial, Finding
@@ -59,16 +58,12 @@ def more_findings(run, findings: list, final) -> tuple[list, object]:
 
 
 def _wide_pool(run, findings: list, pool: dict) -> dict:
-    """Every candidate of ``run.on_top`` (the vocabulary's variants) that is not a finding or a look-alike of one
-    (:func:`.candidates.family_of`), not in ``pool`` and not refitted on top before, by label.
-
-    Why not a finding's look-alikes: the first round already fitted them beside it (its look-alike round), and on
-    top of it a look-alike absorbs what the finding's fit left where that fit stopped in a bent basin -- a dead
-    band of 4 mV on top of an offset, +4.4 points, on a recording with the offset alone; a spool lag on top of a
-    load, where the delay was missing; pressure-dependent friction on top of an asymmetry (``docs/decisions/0107``)."""
-    alike = {name for f in findings for name in family_of(f.effect)}
+    """Every candidate of ``run.on_top`` (the vocabulary's variants) that is not a finding, not in ``pool`` and
+    not refitted on top before, by label.  A finding's look-alikes stay in: a load and seals that drag harder one
+    way are one family and often come together (``docs/decisions/0107``)."""
+    found = {f.effect for f in findings}
     return {label: c for label, c in run.on_top.items()
-            if c.name not in alike and c.name not in pool and label not in pool and label not in run.refitted_on_top}
+            if c.name not in found and c.name not in pool and label not in pool and label not in run.refitted_on_top}
 
 
 def _search_on_top(run, findings: list, final, pool: dict) -> tuple[list, object]:
