@@ -51,7 +51,7 @@ def more_findings(run, findings: list, final) -> tuple[list, object]:
     of ``final`` and refitted as in :func:`add_findings`, up to ``run.max_findings``.  Returns ``(findings,
     final)``.
 
-    Why: where the one-effect-first search leaves the recording unexplained, the effect still missing is often
+    Why: where the one-effect-first search leaves the model above noise, the effect still missing is often
     one the first round never confirmed (it fitted badly alone while the first was missing); candidates already
     refitted on top of the same findings would fail the same test again."""
     return _search_on_top(run, findings, final, _wide_pool(run, findings, {}))
