@@ -391,6 +391,28 @@ def test_chaotic_open_loop_steps_reach_noise():
         assert_verdict(result, truth, label, all_inside=True)
 
 
+#: the true rig of the open-loop random-steps example: every default free parameter off the data sheet
+OPEN_LOOP_TRUTH = {"valve_sonic_conductance_m3_per_s_Pa": 1.36e-08, "valve_critical_pressure_ratio": 0.26,
+                   "friction_static_N": 48.0, "friction_coulomb_N": 27.0, "friction_stribeck_velocity_m_per_s": 0.026,
+                   "friction_viscous_N_s_per_m": 72.0, "moving_mass_kg": 1.5}
+
+
+@pytest.mark.minutes
+def test_open_loop_random_steps_get_the_verdict_of_what_the_fit_reached():
+    """Paper 2, open-loop random steps without pressures, 8000 samples (``pneusim simulate --rig paper2-enfield
+    --input steps --loop open --seed 3 --no-pressures`` with the parameters above): the fit reaches the noise
+    with every truth within 3 sigma, and the verdict the user reads says so (``success``, no warning), as given
+    and with the start values or the data moved by 1e-12 relative.  Its Gauss-Newton settling iterates scatter
+    on this stick-slip recording; whether the first few had their defects closed was a draw of the arithmetic,
+    and one path handed the same answer to IPOPT, which called it a failure or took a minute and a half."""
+    true_rig = load_rig("paper2-enfield").with_params(OPEN_LOOP_TRUTH)
+    rec = simulate(true_rig, standard_experiment(true_rig, "steps", 80.0, "open", seed=3), seed=3,
+                   record_pressures=False).recording
+    for label, result in fits_under_perturbations(rec, load_rig("paper2-enfield")):
+        assert_verdict(result, OPEN_LOOP_TRUTH, label, all_inside=True)
+        assert result.warnings == [], (label, result.warnings)
+
+
 @pytest.mark.minutes
 def test_open_loop_stick_slip_with_pressures_reaches_noise():
     """Paper 2, open-loop steps with both pressures (``s1026`` of the robustness set): the piston
