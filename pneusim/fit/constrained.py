@@ -5,6 +5,14 @@ The trust region's point is not the answer: the penalty's open defects bias it. 
 common case, cheap), and :func:`solve_ipopt_exact`, IPOPT on the constrained problem with the penalty form
 as its fallback (``docs/decisions/0007``, ``0010``).
 
+Why Gauss-Newton settling first: near the optimum IPOPT needs three acceptable iterates in a row to stop, where
+one or two Gauss-Newton steps reach the same point (the first moves the parameters by a fraction of a standard
+error, the next by a hundredth of one).  Without a line search a step may open the defects where stick-slip makes
+the linearisation poor; IPOPT's filter line search takes those.  A step may also open them a little on its way
+(then closed by the next step), so only a tenfold excess hands over.  On recordings of another simulator the
+steps may not converge at all, so a step that does not halve the next one hands over at once
+(``docs/decisions/0010``).
+
 ``PNEUSIM_IPOPT_PRINT=5`` in the environment prints IPOPT's iterations (for debugging a fit).
 """
 
@@ -37,11 +45,11 @@ def settle_gauss_newton(pb: ShootingProblem, v, rms: float, rtol: float, lower, 
     :data:`~.rules.SETTLED_STEP` of its standard error (:func:`.uncertainty.covariance`).  Not settled, and
     IPOPT's turn: the trust region ended above noise (:data:`~.rules.ABOVE_NOISE_WARNING`), a step would cross
     a bound, or ends with its largest defect above both :data:`~.rules.OPENED_DEFECTS` times the tolerance and
-    the step's start's (outside the scatter below), or with a residual sum more than :data:`~.rules.KEEP_CONSTRAINED` times the trust
-    region's (the bound at which :func:`solve_ipopt_exact` gives up the constrained IPOPT run), or the next
+    the step's start's (outside the scatter below), or with a residual sum more than
+    :data:`~.rules.KEEP_CONSTRAINED` times the trust region's (the bound at which :func:`solve_ipopt_exact` gives up the constrained IPOPT run), or the next
     step is more than :data:`~.rules.CONTRACTION` times the last and more than the scatter below (Gauss-Newton
-    is not converging), or :data:`~.rules.SETTLED_STEPS` steps did not settle (:data:`~.rules.SETTLED_SCATTER_STEPS`
-    while the residual sum no longer moves, below).
+    is not converging), or :data:`~.rules.SETTLED_STEPS` steps did not settle
+    (:data:`~.rules.SETTLED_SCATTER_STEPS` while the residual sum no longer moves, below).
 
     Settled too, within the scatter of its steps (:data:`~.rules.SETTLED_NOISE`): after two steps or more, the
     residual sum moved by less than IPOPT's acceptable relative change of the objective over the last step and
@@ -49,19 +57,12 @@ def settle_gauss_newton(pb: ShootingProblem, v, rms: float, rtol: float, lower, 
     smaller largest defect is the answer where that is within half the level the result warns at.  On a
     recording that stick-slips through every slow motion each linearisation misses by the integration error:
     the steps wander by hundredths to tenths of a standard error and the defects scatter near their tolerance
-    while the residual no longer moves, where IPOPT then takes its forty iterations to end
-    at the same residual (``docs/decisions/0100``).  While the residual sum no longer moves the steps go on up
-    to :data:`~.rules.SETTLED_SCATTER_STEPS`: which of the scattered iterates first has its defects within
-    that level is a draw of the last bits of the arithmetic, and a draw lost after three steps handed the fit
-    to IPOPT on one machine and not on another (``docs/decisions/0108``).
+    while the residual no longer moves, where IPOPT then takes its forty iterations to end at the same residual
+    (``docs/decisions/0100``).  There the steps go on up to :data:`~.rules.SETTLED_SCATTER_STEPS`: which
+    scattered iterate first has its defects within that level is a draw of the last bits of the arithmetic
+    (``docs/decisions/0108``).
 
-    Why: near the optimum IPOPT needs three acceptable iterates in a row to stop, where one or two
-    Gauss-Newton steps reach the same point (the first moves the parameters by a fraction of a standard
-    error, the next by a hundredth of one).  Without a line search a step may open the defects where
-    stick-slip makes the linearisation poor; IPOPT's filter line search takes those.  A step may also open
-    them a little on its way (then closed by the next step), so only a tenfold excess hands over.  On
-    recordings of another simulator the steps may not converge at all, so a step that does not halve the
-    next one hands over at once (``docs/decisions/0010``).
+    Why Gauss-Newton first, and its hand-over rules: the module's docstring.
     """
     if not rms <= ABOVE_NOISE_WARNING:
         return None
