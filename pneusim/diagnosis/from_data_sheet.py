@@ -101,8 +101,8 @@ def screen_from_data_sheet(run, candidates: list, signatures: dict, start: int =
         if explained_by is not None and c.name not in family_of(explained_by):
             continue
         try:
-            pre = run.stages.prefit(recording, rig, [c.effect], free_set([c.effect]), start_values=data_sheet_start(rig, c),
-                                    **options)
+            pre = run.stages.prefit(recording, rig, [c.effect], free_set([c.effect]),
+                                    start_values=data_sheet_start(rig, c), **options)
             score = n_window * math.log(base.cost / max(pre.cost, 1e-300)) - bic_penalty(c.n_added, n_window)
         except Exception as exc:  # noqa: BLE001 - a candidate that cannot be integrated is reported, not raised
             if not is_solver_failure(exc):

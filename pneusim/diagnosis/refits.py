@@ -16,8 +16,8 @@ from ..model import make_effect
 from .candidates import Candidate, neutral_effect
 from .rules import DATA_SHEET_FIT_STARTS, DEFECT_WEIGHT, NOMINAL_FREED, is_solver_failure
 
-__all__ = ["noise_levels", "estimation_cost", "free_set", "fit_nominal", "refit", "fit_from_data_sheet", "retry_from_neutral",
-           "judge_refit", "effect_parameters", "effect_at_screened", "effect_at_prefit"]
+__all__ = ["noise_levels", "estimation_cost", "free_set", "fit_nominal", "refit", "fit_from_data_sheet",
+           "retry_from_neutral", "judge_refit", "effect_parameters", "effect_at_screened", "effect_at_prefit"]
 
 
 def noise_levels(recording, rig) -> dict:

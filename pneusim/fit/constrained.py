@@ -46,9 +46,9 @@ def settle_gauss_newton(pb: ShootingProblem, v, rms: float, rtol: float, lower, 
     IPOPT's turn: the trust region ended above noise (:data:`~.rules.ABOVE_NOISE_WARNING`), a step would cross
     a bound, or ends with its largest defect above both :data:`~.rules.OPENED_DEFECTS` times the tolerance and
     the step's start's (outside the scatter below), or with a residual sum more than
-    :data:`~.rules.KEEP_CONSTRAINED` times the trust region's (the bound at which :func:`solve_ipopt_exact` gives up the constrained IPOPT run), or the next
-    step is more than :data:`~.rules.CONTRACTION` times the last and more than the scatter below (Gauss-Newton
-    is not converging), or :data:`~.rules.SETTLED_STEPS` steps did not settle
+    :data:`~.rules.KEEP_CONSTRAINED` times the trust region's (the bound at which :func:`solve_ipopt_exact` gives
+    up the constrained IPOPT run), or the next step is more than :data:`~.rules.CONTRACTION` times the last and
+    more than the scatter below (Gauss-Newton is not converging), or :data:`~.rules.SETTLED_STEPS` steps did not settle
     (:data:`~.rules.SETTLED_SCATTER_STEPS` while the residual sum no longer moves, below).
 
     Settled too, within the scatter of its steps (:data:`~.rules.SETTLED_NOISE`): after two steps or more, the

@@ -18,7 +18,8 @@ import numpy as np
 from ..errors import FitError
 from ..model.effects import EFFECTS, POSITIVE_NEAR_START
 
-__all__ = ["DEFAULT_FREE", "EFFECT_FREE", "default_free", "parameter_scale", "parameter_bounds", "check_free", "clip_inside"]
+__all__ = ["DEFAULT_FREE", "EFFECT_FREE", "default_free", "parameter_scale", "parameter_bounds", "check_free",
+           "clip_inside"]
 
 #: the nominal model's free parameters (``shared/spec/diagnosis.md``)
 DEFAULT_FREE = ("valve_sonic_conductance_m3_per_s_Pa", "valve_critical_pressure_ratio",
