@@ -2,8 +2,8 @@
 
 ``Diagnosis(effects=..., ...).fit(recording)`` runs, in order:
 
-1. **nominal fit** -- the free parameters (:func:`.refits.free_set`: the fit's defaults and the friction smoothing
-   velocity) fitted to the estimation part (the first 70 %); the last 30 % validates and is never fitted;
+1. **nominal fit** -- the rig's free parameters (:data:`pneusim.fit.DEFAULT_FREE`) fitted to the estimation
+   part (the first 70 %); the last 30 % validates and is never fitted;
 2. **locate** (:mod:`.locate`) -- windows where the residual of the fitted nominal model exceeds the sensor
    noise, tagged with signal and operating condition;
 3. **signatures** (:mod:`.signatures`) -- the vocabulary's signatures as numbers;

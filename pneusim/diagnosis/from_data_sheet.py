@@ -24,7 +24,7 @@ import time
 import numpy as np
 
 from .candidates import family_of
-from .refits import effect_at_prefit, estimation_cost, free_set, judge_refit, retry_from_neutral
+from .refits import effect_at_prefit, estimation_cost, judge_refit, retry_from_neutral
 from .result import CandidateTrial
 from .rules import (AT_NOISE_ON_WINDOW, DEFER_WINDOW, EXPLAINED, MAX_FITS, MODEL_SHORT, PREFIT_EVALUATIONS,
                     PREFIT_START, RIVAL_WINDOW, WINDOW_SAMPLES, WINDOW_SHOWS_MISMATCH, bic_penalty, is_solver_failure)
@@ -92,7 +92,7 @@ def screen_from_data_sheet(run, candidates: list, signatures: dict, start: int =
     recording, rig = run.recording, run.rig
     options = {"samples": WINDOW_SAMPLES, "validation_fraction": run.baseline.validation_fraction,
                "second_route": False, "max_evaluations": PREFIT_EVALUATIONS, "start": start}
-    base = run.stages.prefit(recording, rig, [], free_set(), **options)
+    base = run.stages.prefit(recording, rig, [], **options)
     t0 = float(recording.time_s[start])
     window_shows_it = base.normalised_residual > WINDOW_SHOWS_MISMATCH * AT_NOISE_ON_WINDOW
     n_window = base.n_residuals
@@ -101,8 +101,7 @@ def screen_from_data_sheet(run, candidates: list, signatures: dict, start: int =
         if explained_by is not None and c.name not in family_of(explained_by):
             continue
         try:
-            pre = run.stages.prefit(recording, rig, [c.effect], free_set([c.effect]),
-                                    start_values=data_sheet_start(rig, c), **options)
+            pre = run.stages.prefit(recording, rig, [c.effect], start_values=data_sheet_start(rig, c), **options)
             score = n_window * math.log(base.cost / max(pre.cost, 1e-300)) - bic_penalty(c.n_added, n_window)
         except Exception as exc:  # noqa: BLE001 - a candidate that cannot be integrated is reported, not raised
             if not is_solver_failure(exc):

@@ -10,14 +10,13 @@ import math
 import numpy as np
 
 from ..fit import fit_recording, noise_std_estimate
-from ..fit.parameters import default_free
 from ..fit.rules import POSITION_NOISE_FLOOR, PRESSURE_NOISE_FLOOR_PA
 from ..model import make_effect
 from .candidates import Candidate, neutral_effect
-from .rules import DATA_SHEET_FIT_STARTS, DEFECT_WEIGHT, NOMINAL_FREED, is_solver_failure
+from .rules import DATA_SHEET_FIT_STARTS, DEFECT_WEIGHT, is_solver_failure
 
-__all__ = ["noise_levels", "estimation_cost", "free_set", "fit_nominal", "refit", "fit_from_data_sheet",
-           "retry_from_neutral", "judge_refit", "effect_parameters", "effect_at_screened", "effect_at_prefit"]
+__all__ = ["noise_levels", "estimation_cost", "fit_nominal", "refit", "fit_from_data_sheet", "retry_from_neutral",
+           "judge_refit", "effect_parameters", "effect_at_screened", "effect_at_prefit"]
 
 
 def noise_levels(recording, rig) -> dict:
@@ -56,29 +55,21 @@ def estimation_cost(fit, noise: dict, defects: bool = True) -> tuple[float, int]
     return cost, count
 
 
-def free_set(effects=()) -> list[str]:
-    """The parameters every fit and pre-fit of a diagnosis frees with ``effects`` switched on: the fit's
-    defaults, the nominal parameters of :data:`~.rules.NOMINAL_FREED`, and the effects' own."""
-    return default_free(effects, NOMINAL_FREED)
-
-
 def fit_nominal(recording, rig, validation_fraction: float):
-    """The nominal fit: the diagnosis's free parameters (:func:`free_set`), no effect, the last
-    ``validation_fraction`` never fitted."""
-    return fit_recording(recording, rig, free=free_set(), validation_fraction=validation_fraction, quiet=True)
+    """The nominal fit: the rig's free parameters, no effect, the last ``validation_fraction`` never fitted."""
+    return fit_recording(recording, rig, validation_fraction=validation_fraction, quiet=True)
 
 
 def refit(recording, rig, effects, warm, start_values=None):
     """The whole fit with ``effects`` switched on, warm-started from the fit ``warm`` (and from
     ``start_values`` for the parameters named there), on the warm fit's estimation/validation split."""
-    return fit_recording(recording, rig, effects, free=free_set(effects), warm_start=warm, start_values=start_values,
-                         quiet=True)
+    return fit_recording(recording, rig, effects, warm_start=warm, start_values=start_values, quiet=True)
 
 
 def fit_from_data_sheet(recording, rig, effects, validation_fraction: float, start_values=None):
     """The whole fit with ``effects`` switched on from the data sheet (and from ``start_values`` for the
     parameters named there), one start (:data:`~.rules.DATA_SHEET_FIT_STARTS`)."""
-    return fit_recording(recording, rig, effects, free=free_set(effects), validation_fraction=validation_fraction,
+    return fit_recording(recording, rig, effects, validation_fraction=validation_fraction,
                          starts=DATA_SHEET_FIT_STARTS, quiet=True, start_values=start_values)
 
 

@@ -27,7 +27,7 @@ __all__ = [
     "MIN_SAMPLES", "VALIDATION_FRACTION", "VALIDATION_FRACTION_RANGE", "VALIDATION_MOTION_NOISE",
     "FALSE_ALARM", "LOCATE_WINDOW_S", "LOCATE_WINDOW_SAMPLES", "MAX_WINDOWS", "MAX_EPISODES", "EPISODE_GAP",
     "EPISODE_LENGTH",
-    "NOMINAL_FREED", "MODEL_SHORT", "MAX_REFITS", "MAX_LOOKALIKES", "MAX_FINDINGS", "MAX_FINDINGS_SEVERAL",
+    "MODEL_SHORT", "MAX_REFITS", "MAX_LOOKALIKES", "MAX_FINDINGS", "MAX_FINDINGS_SEVERAL",
     "SCREEN_SAMPLES", "SCREEN_EVALUATIONS", "SCANNED_EVALUATIONS", "DEFECT_WEIGHT", "DELAY_LAG_FACTORS",
     "DELAY_LAG_CORRELATION", "RELATIVE_SCORE", "MIN_EXPLAINED",
     "WINDOW_SAMPLES", "PREFIT_EVALUATIONS", "AT_NOISE_ON_WINDOW", "WINDOW_SHOWS_MISMATCH", "MAX_FITS", "EXPLAINED",
@@ -69,12 +69,6 @@ EPISODE_GAP = 0.02
 EPISODE_LENGTH = 0.1
 
 # ------------------------------------------------------------------------------ which screening, how many fits
-#: (parameters) nominal parameters every fit of a diagnosis frees beside the fit's defaults: the friction's
-#: smoothing velocity (tanh(v / v_eps) through zero velocity). A stuck piston creeps at v_eps atanh(F_net / F_s),
-#: so holds, reversals and slow motion depend on it, and a real seal's is not the data sheet's: held at 1 mm/s
-#: where the rig's is 0.5-2 mm/s, a fit ends 1.1-2.3 times above noise with the friction bent to make up for it,
-#: and every vocabulary effect that lowers that residual looks needed (0022, 0109)
-NOMINAL_FREED = ("friction_smoothing_velocity_m_per_s",)
 #: (normalised residual) the fit's own threshold (pneusim.fit.rules, one definition): a nominal fit ending more
 #: than this above noise has bent its parameters to make up for missing physics, so candidates are screened
 #: from the data sheet, not around it

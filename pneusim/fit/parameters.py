@@ -18,8 +18,7 @@ import numpy as np
 from ..errors import FitError
 from ..model.effects import EFFECTS, POSITIVE_NEAR_START
 
-__all__ = ["DEFAULT_FREE", "EFFECT_FREE", "default_free", "parameter_scale", "parameter_bounds", "check_free",
-           "clip_inside"]
+__all__ = ["DEFAULT_FREE", "EFFECT_FREE", "parameter_scale", "parameter_bounds", "check_free", "clip_inside"]
 
 #: the nominal model's free parameters (``shared/spec/diagnosis.md``)
 DEFAULT_FREE = ("valve_sonic_conductance_m3_per_s_Pa", "valve_critical_pressure_ratio",
@@ -33,16 +32,6 @@ EFFECT_FREE = {name: tuple(f"{name}.{key}" for key in cls.fit_free) for name, cl
 #: parameters found by a search over a grid instead of by gradient (each effect's ``searched``: they move
 #: command switch times)
 SEARCHED = tuple(f"{name}.{key}" for name, cls in EFFECTS.items() for key in cls.searched)
-
-def default_free(effects: Sequence = (), extra: Sequence[str] = ()) -> list[str]:
-    """The free set of a fit with ``effects`` switched on (effects or their names) when none is given:
-    :data:`DEFAULT_FREE`, then the nominal parameters ``extra`` freed beside them, then each effect's
-    :data:`EFFECT_FREE` parameters that are not :data:`SEARCHED`."""
-    names = list(DEFAULT_FREE) + [n for n in extra if n not in DEFAULT_FREE]
-    for effect in effects:
-        names += [n for n in EFFECT_FREE.get(getattr(effect, "name", effect), ()) if n not in SEARCHED]
-    return names
-
 
 #: (typical magnitude, lower, upper) in SI units; None: from the starting value.  The nominal model's rows
 #: here; each effect's rows (``EFFECT.PARAM``) are its ``fit_scale``

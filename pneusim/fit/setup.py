@@ -15,7 +15,7 @@ from ..rig import Rig, load_rig
 from .rules import (DEFAULT_VALIDATION_FRACTION, EXCITATION_NOISE_MULTIPLE, INFORMATIVE_WINDOW, MAX_VALIDATION_FRACTION,
                     MIN_ESTIMATION_SAMPLES, MIN_SEGMENT_SAMPLES, MIN_VALIDATION_SAMPLES, POSITION_NOISE_FLOOR,
                     PRESSURE_NOISE_FLOOR_PA)
-from .parameters import SEARCHED, check_free, default_free, parameter_bounds, parameter_scale
+from .parameters import DEFAULT_FREE, EFFECT_FREE, SEARCHED, check_free, parameter_bounds, parameter_scale
 from .shooting import FitData, ShootingProblem
 from .warm_start import check_warm_start, warm_parameters
 
@@ -160,7 +160,10 @@ def _resolve_rig(recording: Recording, rig) -> Rig:
 
 
 def _default_free(model: ActuatorModel) -> list[str]:
-    return default_free(model.effects)
+    names = list(DEFAULT_FREE)
+    for effect in model.effects:
+        names += [n for n in EFFECT_FREE.get(effect.name, ()) if n not in SEARCHED]
+    return names
 
 
 def _signals(recording: Recording, rig: Rig, model: ActuatorModel):
