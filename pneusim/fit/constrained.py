@@ -25,7 +25,7 @@ import numpy as np
 from .nlp import IpoptResult, damped_gauss_newton, solve_ipopt
 from .rules import (ABOVE_NOISE_WARNING, ACCEPTABLE_DEFECT_FACTOR, CONTRACTION, DEFECT_TOL_PER_RTOL, GIVE_UP_CLIMB,
                     GIVE_UP_STALL, IPOPT_OBJECTIVE_CHANGE, KEEP_CONSTRAINED, MODEL_SHORT, OPENED_DEFECTS, SETTLED_NOISE,
-                    SETTLED_KEPT_DEFECTS, SETTLED_SCATTER_STEPS, SETTLED_STEP, SETTLED_STEPS)
+                    SETTLED_SCATTER_STEPS, SETTLED_STEP, SETTLED_STEPS)
 from .shooting import ShootingProblem
 from .uncertainty import covariance
 
@@ -39,28 +39,30 @@ def settle_gauss_newton(pb: ShootingProblem, v, rms: float, rtol: float, lower, 
 
     Each step minimises the linearised residuals subject to the linearised continuity constraints
     (IPOPT's damped Gauss-Newton matrix, :func:`.nlp.damped_gauss_newton`; one sparse KKT solve).  Settled:
-    the largest continuity defect within IPOPT's own acceptable level (:data:`~.rules.ACCEPTABLE_DEFECT_FACTOR`
-    times :data:`~.rules.DEFECT_TOL_PER_RTOL` ``rtol``) and the next step moving no free parameter by more than
+    the largest continuity defect within the constraint violation at which :func:`solve_ipopt_exact`'s IPOPT
+    itself stops (its acceptable level, :data:`~.rules.ACCEPTABLE_DEFECT_FACTOR` times
+    :data:`~.rules.DEFECT_TOL_PER_RTOL` ``rtol``) and the next step moving no free parameter by more than
     :data:`~.rules.SETTLED_STEP` of its standard error (:func:`.uncertainty.covariance`).  Not settled, and
     IPOPT's turn: the trust region ended above noise (:data:`~.rules.ABOVE_NOISE_WARNING`), a step would cross
-    a bound, opens the defects past :data:`~.rules.OPENED_DEFECTS` times the tolerance and its start's (outside
-    the scatter below) or climbs past :data:`~.rules.KEEP_CONSTRAINED` times the trust region's residual sum,
-    the steps do not contract by :data:`~.rules.CONTRACTION` (beyond the scatter below), or
-    :data:`~.rules.SETTLED_STEPS` steps did not settle (within the scatter, :data:`~.rules.SETTLED_SCATTER_STEPS`).
+    a bound, or ends with its largest defect above both :data:`~.rules.OPENED_DEFECTS` times the tolerance and
+    the step's start's (outside the scatter below), or with a residual sum more than
+    :data:`~.rules.KEEP_CONSTRAINED` times the trust region's (the bound at which :func:`solve_ipopt_exact` gives
+    up the constrained IPOPT run), or the next step is more than :data:`~.rules.CONTRACTION` times the last and
+    more than the scatter below (Gauss-Newton is not converging), or :data:`~.rules.SETTLED_STEPS` steps did not settle
+    (:data:`~.rules.SETTLED_SCATTER_STEPS` while the residual sum no longer moves, below).
 
     Settled too, within the scatter of its steps (:data:`~.rules.SETTLED_NOISE`): after two steps or more, the
     residual sum moved by less than IPOPT's acceptable relative change of the objective over the last step and
     the next step moves no parameter by more than a standard error; of the last two iterates, the one with the
     smaller largest defect is the answer where that is within half the level the result warns at.  On a
-    stick-slip recording each linearisation misses by the integration error, the defects scatter near their
-    tolerance while the residual no longer moves (``docs/decisions/0100``), and which iterate first has them within
-    that level is a draw of the arithmetic: the steps go on up to :data:`~.rules.SETTLED_SCATTER_STEPS` (``0108``).
+    recording that stick-slips through every slow motion each linearisation misses by the integration error:
+    the steps wander by hundredths to tenths of a standard error and the defects scatter near their tolerance
+    while the residual no longer moves, where IPOPT then takes its forty iterations to end at the same residual
+    (``docs/decisions/0100``).  There the steps go on up to :data:`~.rules.SETTLED_SCATTER_STEPS`: which
+    scattered iterate first has its defects within that level is a draw of the last bits of the arithmetic
+    (``docs/decisions/0108``).
 
-    Settled as well where the step closing the defects is refused (it would cross a bound, open them or climb)
-    at an iterate whose defects are within :data:`~.rules.SETTLED_KEPT_DEFECTS`'s level and whose step keeping
-    them as they are moves no parameter by more than a standard error: closing defects within the integration
-    error's reach trades the residual for a stick-slip event's timing (``docs/decisions/0110``).  Why Gauss-Newton
-    first, and its hand-over rules: the module's docstring.
+    Why Gauss-Newton first, and its hand-over rules: the module's docstring.
     """
     if not rms <= ABOVE_NOISE_WARNING:
         return None
@@ -78,8 +80,7 @@ def settle_gauss_newton(pb: ShootingProblem, v, rms: float, rtol: float, lower, 
         if not np.all(np.isfinite(delta)):
             return None
         defect, cost = float(np.max(np.abs(g), initial=0.0)), float(np.dot(r, r))
-        std = covariance(pb, v)["std"]
-        step = float(np.max(np.abs(delta[:nf]) / std))   # in standard errors
+        step = float(np.max(np.abs(delta[:nf]) / covariance(pb, v)["std"]))   # in standard errors
         if defect <= tolerance and step <= SETTLED_STEP:
             return IpoptResult(v, cost, "Gauss_Newton_Settled", True, steps, 0.0, defect,
                                f"continuity constraints (Gauss-Newton, {steps} steps from the trust region's point)")
@@ -97,10 +98,9 @@ def settle_gauss_newton(pb: ShootingProblem, v, rms: float, rtol: float, lower, 
         last = (v, cost, defect)
         trial = v + delta
         if ((steps >= SETTLED_STEPS and not scatter) or steps == SETTLED_SCATTER_STEPS
+                or np.any(trial < lower) or np.any(trial > upper)
                 or (steps > 0 and not step <= max(CONTRACTION * previous, SETTLED_NOISE[2]))):
             return None
-        if np.any(trial < lower) or np.any(trial > upper):
-            return _settled_keeping_defects(pb, last, r, g, std, steps, "would cross a bound")
         previous = step
         e = pb.evaluate(trial, derivatives=True)
         if not (e["ok"] and float(np.dot(e["r"], e["r"])) <= KEEP_CONSTRAINED * start
@@ -109,28 +109,9 @@ def settle_gauss_newton(pb: ShootingProblem, v, rms: float, rtol: float, lower, 
             # Within the scatter the defects of one step may open past that and the next close them: the
             # answer is still only an iterate whose defects are within SETTLED_NOISE's level, and a step that
             # leaves the scatter (the residual sum moving, a step of a standard error) ends the settling
-            return _settled_keeping_defects(pb, last, r, g, std, steps, "climbs or opens them elsewhere")
+            return None
         v = trial
     return None
-
-
-def _settled_keeping_defects(pb: ShootingProblem, iterate, r, g, std, steps: int, why: str) -> IpoptResult | None:
-    """The Gauss-Newton ``iterate`` ``(v, residual sum, largest defect)`` (residuals ``r``, defects ``g``,
-    standard errors ``std``) as the answer where the step that closes its defects is refused (``why``), or None
-    (IPOPT's turn).  Settled where its largest defect is within :data:`~.rules.SETTLED_KEPT_DEFECTS`'s level and
-    the step that keeps the defects as they are (the linearised continuity held at ``g`` instead of closed)
-    moves no parameter by more than its standard errors: the defects are then within the integration error's
-    reach, and closing them exactly trades the residual for a stick-slip event's timing (``docs/decisions/0110``).
-    """
-    v, cost, defect = iterate
-    if not defect <= SETTLED_KEPT_DEFECTS[0]:
-        return None
-    keep = _gauss_newton_step(pb, v, r, np.zeros_like(g))
-    if not np.max(np.abs(keep[:pb.n_free]) / std, initial=0.0) <= SETTLED_KEPT_DEFECTS[1]:
-        return None                                    # NaN included
-    return IpoptResult(v, cost, "Gauss_Newton_Settled", True, steps, 0.0, defect,
-                       f"continuity constraints (Gauss-Newton, {steps} steps from the trust region's point; "
-                       f"settled keeping its defects: the step closing them {why})")
 
 
 def _gauss_newton_step(pb: ShootingProblem, v, r, g) -> np.ndarray:

@@ -25,8 +25,7 @@ __all__ = [
     "FIT_DEFECT_WEIGHTS", "CLEARLY_BETTER", "WELL_ABOVE_MARGIN", "PREFIT_RESTARTS", "SHORT_SEGMENTS",
     "WARM_TOLERANCE", "WARM_CONTINUE_BELOW",
     "DEFECT_TOL_PER_RTOL", "ACCEPTABLE_DEFECT_FACTOR", "IPOPT_OBJECTIVE_CHANGE", "GN_DAMPING", "KEEP_CONSTRAINED",
-    "GIVE_UP_CLIMB", "GIVE_UP_STALL", "SETTLED_STEP", "SETTLED_STEPS", "SETTLED_SCATTER_STEPS", "SETTLED_KEPT_DEFECTS",
-    "OPENED_DEFECTS",
+    "GIVE_UP_CLIMB", "GIVE_UP_STALL", "SETTLED_STEP", "SETTLED_STEPS", "SETTLED_SCATTER_STEPS", "OPENED_DEFECTS",
     "CONTRACTION",
     "TRACKED_ROUNDS", "TRACKED_STARTS", "PLAUSIBLE_INNOVATIONS", "PROCESS_STD", "FIRST_STATE_STD", "PROCESS_SCHEDULE",
     "PRESSURE_FACTOR", "HELD_BROAD", "HELD_UNTIL", "PREDICTION_ERROR_EVALUATIONS", "PREDICTION_ERROR_TOLERANCE",
@@ -184,12 +183,6 @@ SETTLED_NOISE = (2, 5e-4, 1.0)
 #: last bits of the arithmetic; a further step costs a fraction of a second where IPOPT took half a minute to end
 #: at the same residual (0108)
 SETTLED_SCATTER_STEPS = 12
-#: (largest defect, standard errors): where the Gauss-Newton step that closes the defects is refused (it climbs,
-#: opens them elsewhere or crosses a bound), an iterate whose largest defect is within this level (SETTLED_NOISE's)
-#: is settled when the step that keeps its defects as they are moves no parameter by more than this (SETTLED_NOISE's
-#: scatter): on a stick-slip recording closing defects of twice the acceptable level moved the step 12 standard
-#: errors and climbed, where IPOPT took forty iterations and half a minute to end within 0.02 of them (0110)
-SETTLED_KEPT_DEFECTS = SETTLED_NOISE[1:]
 #: a Gauss-Newton step leaving its largest defect above this many times the acceptable level (and above its
 #: start's) hands over to IPOPT: the linearisation does not hold there (stick-slip)
 OPENED_DEFECTS = 10.0

@@ -114,7 +114,6 @@ def stopped_by(res) -> str:
     seconds and formulation.  Only a description: the verdict is the residual's (:class:`.result.FitResult`)."""
     if res.status == "Gauss_Newton_Settled":
         rule = ("the residual no longer moving within the scatter of its steps" if "scatter" in res.formulation
-                else "the step keeping its defects within a standard error" if "keeping" in res.formulation
                 else "the next step within a tenth of every standard error")
         return (f"settled by Gauss-Newton steps on the constrained problem (largest defect {res.max_defect:.2g}, "
                 f"{rule}; {res.formulation})")

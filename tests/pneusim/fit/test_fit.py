@@ -277,57 +277,6 @@ def test_gauss_newton_within_the_scatter_still_hands_over_where_the_residual_mov
     assert _settle_scripted(monkeypatch, [SCATTER_COSTS[0]] + [5411.0] * n, [2.96e-4] + [8e-4] * n) is None
 
 
-class _ClosingClimbs(_ScriptedIterates):
-    """A stand-in whose step closing the defects moves the parameter ``close_se`` standard errors (and lands on
-    the next scripted iterate), and whose step keeping them moves it ``keep_se``."""
-
-    def __init__(self, costs, defects, close_se, keep_se):
-        super().__init__(costs, defects)
-        self.close_se, self.keep_se = close_se, keep_se
-
-    def step(self, pb, v, r, g):
-        return np.array([self.close_se, 1.0]) if np.any(g) else np.array([self.keep_se, 0.0])
-
-
-def _settle_closing(monkeypatch, costs, defects, close_se=11.7, keep_se=0.16, bound=np.inf):
-    from pneusim.fit import constrained
-
-    pb = _ClosingClimbs(costs, defects, close_se, keep_se)
-    monkeypatch.setattr(constrained, "_gauss_newton_step", pb.step)
-    monkeypatch.setattr(constrained, "covariance", lambda pb, v: {"std": np.ones(1)})
-    bounds = np.array([bound, np.inf])
-    return constrained.settle_gauss_newton(pb, np.zeros(2), 0.761, 1e-6, -bounds, bounds)
-
-
-def test_gauss_newton_settles_keeping_defects_within_the_integration_error_where_closing_them_climbs(monkeypatch):
-    """The open-loop random-steps recording of the robustness set (one arithmetic path): the trust region ends at
-    noise with its largest defect at 1.05 times the acceptable level; the step closing it moves 11.7 standard
-    errors and climbs past KEEP_CONSTRAINED (then the defects open to 0.075), the step keeping it moves 0.16.
-    The trust region's point is the answer (IPOPT took forty iterations to end within 0.02 of it), and so it is
-    where the step closing the defects would cross a bound."""
-    from pneusim.fit.rules import KEEP_CONSTRAINED
-
-    costs, defects = [1216.93, 1487.31], [2.09e-4, 0.0746]
-    assert costs[1] > KEEP_CONSTRAINED * costs[0]
-    for bound in (np.inf, 5.0):
-        settled = _settle_closing(monkeypatch, costs, defects, bound=bound)
-        assert settled is not None and settled.status == "Gauss_Newton_Settled" and settled.iterations == 0
-        assert settled.objective == costs[0] and settled.max_defect == defects[0]
-        assert "keeping its defects" in settled.formulation
-
-
-def test_gauss_newton_hands_over_where_the_kept_defects_are_open_or_keeping_them_moves_the_fit(monkeypatch):
-    """Not settled, IPOPT's turn: where the refused step's iterate has its defects above SETTLED_KEPT_DEFECTS's
-    level (a trust region ending at 20 times the acceptable level), or where the step keeping them moves a
-    parameter by more than a standard error (the iterate is not the optimum at its own defects)."""
-    from pneusim.fit.rules import SETTLED_KEPT_DEFECTS
-
-    assert _settle_closing(monkeypatch, [6612.0, 20452.0], [4.15e-3, 0.0742]) is None
-    assert _settle_closing(monkeypatch, [1216.93, 1487.31], [2.09e-4, 0.0746],
-                           keep_se=1.5 * SETTLED_KEPT_DEFECTS[1]) is None
-    assert _settle_closing(monkeypatch, [1216.93, 1487.31], [2.09e-4, 0.0746], keep_se=np.nan) is None
-
-
 def test_second_route_only_when_ipopt_from_the_direct_route_stays_above_noise():
     """The full fit's continuation route runs only when IPOPT from the direct route's point does not
     reach the noise level and ends within MODEL_SHORT times it (further above, the model lacks physics);
