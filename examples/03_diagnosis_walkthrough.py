@@ -161,8 +161,8 @@ print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in signatures.it
 # smaller asymmetry with the friction levels traded against each other (retracting 1.6 times, Coulomb 50 N,
 # viscous 19 N s/m, where the truth is 2.85 times, 30 N and 60 N s/m) leaves a position residual 7.5 times the
 # noise, a local minimum that a pre-fit from the data sheet mostly lands in; whether it escapes depends on the
-# last bits of its arithmetic. The measured pressures pin the valve and the force balance, and the asymmetry
-# stands out by a wide margin.
+# last bits of its arithmetic. The measured pressures pin the valve and the force balance: the asymmetry's
+# screening ranks it first on every arithmetic path tried, and its fit explains the recording.
 
 # %%
 if RUN_FULL_DIAGNOSIS:
