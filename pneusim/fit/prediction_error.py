@@ -26,7 +26,10 @@ innovations with that Jacobian.
 """
 from __future__ import annotations
 
+import queue
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -41,7 +44,8 @@ __all__ = ["prediction_error_fit", "prediction_error_attempts", "PROCESS_SCHEDUL
 
 
 def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.ndarray, lower: np.ndarray,
-                         upper: np.ndarray, schedule=PROCESS_SCHEDULE, give_up_above: float = np.inf):
+                         upper: np.ndarray, schedule=PROCESS_SCHEDULE, give_up_above: float = np.inf, sim=None,
+                         after_first_stage=None, cancelled=None):
     """Least squares on the filter's whitened innovations over ``pb``'s window, from the scaled free
     parameters ``theta0`` and the first state ``x_first`` (SI), ``theta`` within ``lower .. upper``, the first
     state within :meth:`ShootingProblem.state_bounds`; one stage per process noise of ``schedule``, stopped
@@ -50,6 +54,11 @@ def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.nd
     Why that stop: with less process noise the filter corrects less, and the innovations of a model that
     lacks physics only grow stage by stage, where those of a chaotic recording the model explains approach
     their noise level (``docs/decisions/0018``).
+
+    ``sim`` (one of ``pb.sims``) integrates the filter, ``after_first_stage`` (if given) is called with the first
+    stage's rms of the whitened innovations as soon as it ends, and the fit stops with
+    :class:`~.tracking.FilterCancelled` once the event ``cancelled`` is set (:func:`prediction_error_attempts` runs
+    several side by side).
 
     Returns ``(theta, x_first, info)``: the scaled parameters and first state (SI) of the last stage, and
     ``info`` with each stage's process noise, rms of the whitened innovations (1 where the model is right
@@ -70,7 +79,8 @@ def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.nd
             key = v.tobytes()
             if key not in cache:
                 cache.clear()
-                run = run_filter(pb, v[:nf], v[nf:] * pb.x_scale, process, gradients=True)
+                run = run_filter(pb, v[:nf], v[nf:] * pb.x_scale, process, gradients=True, sim=sim,
+                                 cancelled=cancelled)
                 if not run["ok"]:
                     # a point the model cannot be integrated at: no finite cost, the trust region shrinks
                     run["innovations"] = np.full_like(run["innovations"], np.inf)
@@ -82,6 +92,8 @@ def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.nd
             # the filter cannot run from this point at all: nothing to fit
             stages.append({"process_std": fraction, "rms_innovations": float("inf"), "evaluations": 1,
                            "seconds": time.perf_counter() - started})
+            if after_first_stage is not None and len(stages) == 1:
+                after_first_stage(stages[0]["rms_innovations"])
             break
         # the variables this stage moves: all but the held parameters in the broad stages
         moving = np.array([not (name in HELD_BROAD and fraction > HELD_UNTIL) for name in pb.free] + [True] * n)
@@ -101,6 +113,8 @@ def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.nd
         rms = float(np.sqrt(np.sum(fit.fun ** 2) / n_seen)) if np.all(np.isfinite(fit.fun)) else float("inf")
         stages.append({"process_std": fraction, "rms_innovations": rms, "evaluations": int(fit.nfev),
                        "seconds": time.perf_counter() - started})
+        if after_first_stage is not None and len(stages) == 1:
+            after_first_stage(rms)
         if not rms <= give_up_above:
             break
     info = {"stages": stages, "rms_innovations": stages[-1]["rms_innovations"],
@@ -109,7 +123,7 @@ def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.nd
 
 
 def prediction_error_attempts(pb: ShootingProblem, starts, x_first: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-                              give_up_above: float = np.inf, schedule=PROCESS_SCHEDULE) -> list:
+                              give_up_above: float = np.inf, schedule=PROCESS_SCHEDULE, side_by_side: bool = True) -> list:
     """The prediction-error fit from several starts of the same parameters, the lowest end confirmed: ``starts``
     (scaled parameter vectors, the first the start itself, the others nearby; ``x_first`` the first state, SI).
 
@@ -124,25 +138,111 @@ def prediction_error_attempts(pb: ShootingProblem, starts, x_first: np.ndarray, 
     the whole fit then reaches the noise with five of seven parameters beyond 3 standard errors), and which start
     does is a draw of the last bits of the arithmetic.  The lowest end, once a second start confirms it, is the
     same on every machine (``docs/decisions/0103``).
+
+    The fits run side by side, one per simulator of ``pb`` (:class:`_SideBySide`): the other starts' first stages
+    as soon as the first start's first stage has passed, and each continuation beside the next one in order,
+    which is dropped where the first agrees.  Each fit integrates on a simulator of its own and is the same
+    computation as one after the other, so the result is the same doubles; only the wall clock shortens (a
+    filter pass integrates in one thread, and the shooting problem's threads idle meanwhile).  ``side_by_side``
+    False runs them one after the other on the first simulator.
     """
-    theta, first, info = prediction_error_fit(pb, starts[0], x_first, lower, upper, schedule, give_up_above)
-    out = [(theta, first, {**info, "start": 0})]
-    if not info["stages"][0]["rms_innovations"] <= give_up_above or len(starts) == 1:
+    def fit(start, first, stages, **hooks):
+        return prediction_error_fit(pb, start, first, lower, upper, stages, give_up_above, **hooks)
+
+    with _SideBySide(pb if side_by_side else None) as side:
+        landing_runs = []
+
+        def others_first_stages(rms):
+            if rms <= give_up_above:
+                landing_runs.extend(side.submit(fit, start, x_first, schedule[:1]) for start in starts[1:])
+
+        theta, first, info = side.submit(fit, starts[0], x_first, schedule,
+                                         after_first_stage=others_first_stages).result()
+        out = [(theta, first, {**info, "start": 0})]
+        if not info["stages"][0]["rms_innovations"] <= give_up_above or len(starts) == 1:
+            return out
+        if not landing_runs:   # a fit that did not report its first stage: the other starts from here
+            others_first_stages(info["stages"][0]["rms_innovations"])
+        landings = [(k, *run.result()) for k, run in enumerate(landing_runs, 1)]
+        lowest, order = info["rms_innovations"], sorted(landings, key=lambda landing: (landing[3]["rms_innovations"],
+                                                                                       landing[0]))
+
+        def continued(n):
+            """The rest of the schedule from landing ``n`` of ``order``, None past a landing above give_up_above."""
+            if n >= len(order) or not order[n][3]["rms_innovations"] <= give_up_above:
+                return None
+            return side.submit(fit, order[n][1], order[n][2], schedule[1:])
+
+        ahead = continued(0)
+        for n, (k, theta, first, landed) in enumerate(order):
+            if not landed["rms_innovations"] <= give_up_above:
+                out += [(None, None, {**rest[3], "start": rest[0]}) for rest in order[n:]]
+                break
+            run, ahead = ahead, continued(n + 1)
+            theta, first, rest = run.result()
+            out.append((theta, first, {"stages": landed["stages"] + rest["stages"], "start": k,
+                                       "rms_innovations": rest["rms_innovations"],
+                                       "seconds": landed["seconds"] + rest["seconds"]}))
+            if abs(rest["rms_innovations"] / lowest - 1.0) < SAME_PREFIT:
+                out += [(None, None, {**later[3], "start": later[0]}) for later in order[n + 1:]]
+                break
+            lowest = min(lowest, rest["rms_innovations"])
         return out
-    landings = [(k, *prediction_error_fit(pb, start, x_first, lower, upper, schedule[:1], give_up_above))
-                for k, start in enumerate(starts[1:], 1)]
-    lowest, order = info["rms_innovations"], sorted(landings, key=lambda landing: (landing[3]["rms_innovations"],
-                                                                                   landing[0]))
-    for n, (k, theta, first, landed) in enumerate(order):
-        if not landed["rms_innovations"] <= give_up_above:
-            out += [(None, None, {**rest[3], "start": rest[0]}) for rest in order[n:]]
-            break
-        theta, first, rest = prediction_error_fit(pb, theta, first, lower, upper, schedule[1:], give_up_above)
-        out.append((theta, first, {"stages": landed["stages"] + rest["stages"], "start": k,
-                                   "rms_innovations": rest["rms_innovations"],
-                                   "seconds": landed["seconds"] + rest["seconds"]}))
-        if abs(rest["rms_innovations"] / lowest - 1.0) < SAME_PREFIT:
-            out += [(None, None, {**later[3], "start": later[0]}) for later in order[n + 1:]]
-            break
-        lowest = min(lowest, rest["rms_innovations"])
-    return out
+
+
+class _SideBySide:
+    """Prediction-error fits run side by side, one per simulator of ``pb`` (``pb.sims``), in threads: a filter pass
+    spends its time in CVODES, which runs without the GIL.  ``submit(fit, *args, **hooks)`` returns a run whose
+    ``result()`` is ``fit(*args, sim=..., cancelled=..., **hooks)``; leaving the block cancels the runs whose result
+    was not asked for (:class:`~.tracking.FilterCancelled` at their next sample) and waits for them, so that no
+    thread integrates on ``pb`` afterwards.  With fewer than two simulators (or no problem) a run is computed when
+    its result is asked for, in the caller's thread: the order of the calls one after the other."""
+
+    def __init__(self, pb):
+        sims = list(getattr(pb, "sims", None) or [])
+        self._pool = ThreadPoolExecutor(len(sims)) if len(sims) > 1 else None
+        self._free = queue.SimpleQueue()
+        for sim in sims:
+            self._free.put(sim)
+        self._runs = []
+
+    def submit(self, fit, *args, **hooks):
+        cancelled = threading.Event()
+
+        def run():
+            if cancelled.is_set():
+                return None
+            sim = self._free.get()
+            try:
+                return fit(*args, sim=sim, cancelled=cancelled, **hooks)
+            finally:
+                self._free.put(sim)
+
+        if self._pool is None:
+            handle = _Deferred(lambda: fit(*args, **hooks))
+        else:
+            handle = self._pool.submit(run)
+        self._runs.append((handle, cancelled))
+        return handle
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        for handle, cancelled in self._runs:
+            cancelled.set()
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+        return False
+
+
+class _Deferred:
+    """A run computed when its result is first asked for (:class:`_SideBySide` without threads)."""
+
+    def __init__(self, compute):
+        self._compute, self._done, self._value = compute, False, None
+
+    def result(self):
+        if not self._done:
+            self._value, self._done = self._compute(), True
+        return self._value

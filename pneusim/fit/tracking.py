@@ -33,7 +33,7 @@ from ._filter import filter_pass
 from .rules import FIRST_STATE_STD, PROCESS_STD
 from .shooting import ShootingProblem
 
-__all__ = ["filtered_states", "run_filter", "process_std", "first_state_std", "PROCESS_STD"]
+__all__ = ["filtered_states", "run_filter", "FilterCancelled", "process_std", "first_state_std", "PROCESS_STD"]
 
 
 def filtered_states(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray) -> np.ndarray:
@@ -71,9 +71,11 @@ def first_state_std(pb: ShootingProblem) -> np.ndarray:
 
 
 def run_filter(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray, process: np.ndarray,
-               gradients: bool = False) -> dict:
+               gradients: bool = False, sim=None, cancelled=None) -> dict:
     """The extended Kalman filter over ``pb``'s window at the scaled free parameters ``theta`` from the first
-    state ``x_first`` (SI), with process noise std ``process`` (SI, per state and sample).
+    state ``x_first`` (SI), with process noise std ``process`` (SI, per state and sample), integrated by ``sim``
+    (one of ``pb.sims``, the first by default: passes side by side each take another).  Where ``cancelled`` (a
+    :class:`threading.Event`) is set, the pass raises :class:`FilterCancelled` at its next sample.
 
     Returns ``{"states": (N, n) filtered states, "ok": whether every step integrated}``; with ``gradients``
     also ``"innovations"``: the whitened innovations ``L_k^-1 (y_k - h(x_k^-))`` of every measured value
@@ -83,7 +85,7 @@ def run_filter(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray, proc
     sensitivities and the update's ``I - K H``), shape ``(N * n_measured, n_free + n)``.
     """
     deadline.check()   # a caller's processor-time deadline ends the fit here (see .deadline)
-    sim, data = pb.sims[0], pb.data
+    sim, data = pb.sims[0] if sim is None else sim, pb.data
     n, nf = pb.n, pb.n_free
     sim.set_params(pb.params_of(theta))
     rows = np.array([i for (i, _, _, _, _) in pb.outputs], dtype=np.int64)
@@ -97,7 +99,10 @@ def run_filter(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray, proc
     Z0 = np.zeros((n, nf + n))   # d x / d (theta, x_first scaled)
     Z0[:, nf:] = np.diag(pb.x_scale)
     # a sample that cannot be integrated is the filter's to take; a caller's deadline ends the pass at its next sample
-    ok = filter_pass(deadline.checked(sim.step_into), SolverError, np.ascontiguousarray(data.time_s, dtype=float),
+    step = deadline.checked(sim.step_into)
+    if cancelled is not None:
+        step = _cancellable(step, cancelled)
+    ok = filter_pass(step, SolverError, np.ascontiguousarray(data.time_s, dtype=float),
                      _sample_schedules(pb),
                      np.ascontiguousarray(x_first, dtype=float), np.diag(first_state_std(pb) ** 2), Z0,
                      np.asarray(process, float) ** 2, 1.0 / pb.x_scale, np.ascontiguousarray(x_lo, dtype=float),
@@ -108,6 +113,19 @@ def run_filter(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray, proc
         result["innovations"] = innovations.ravel()
         result["jacobian"] = jacobian.reshape(-1, nf + n)
     return result
+
+
+class FilterCancelled(Exception):
+    """A filter pass stopped because its caller no longer needs it (:func:`run_filter`'s ``cancelled``)."""
+
+
+def _cancellable(step, cancelled):
+    """``step`` that first raises :class:`FilterCancelled` once the event ``cancelled`` is set."""
+    def step_unless_cancelled(*args):
+        if cancelled.is_set():
+            raise FilterCancelled()
+        return step(*args)
+    return step_unless_cancelled
 
 
 def _sample_schedules(pb: ShootingProblem) -> list:
