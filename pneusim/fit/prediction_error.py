@@ -71,6 +71,12 @@ def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.nd
     w = clip_inside(np.concatenate([theta0, np.asarray(x_first, float) / pb.x_scale]), lo, hi)
     n_seen = max(1, sum(int(mask.sum()) for (_, _, _, _, mask) in pb.outputs))   # a gap's innovation is 0
     stages = []
+
+    def stage_ended(stage: dict):
+        stages.append(stage)
+        if after_first_stage is not None and len(stages) == 1:
+            after_first_stage(stage["rms_innovations"])
+
     for fraction in schedule:
         process = process_std(pb, fraction, PRESSURE_FACTOR)
         cache = {}
@@ -90,10 +96,8 @@ def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.nd
         started = time.perf_counter()
         if not np.all(np.isfinite(evaluate(w)["innovations"])):
             # the filter cannot run from this point at all: nothing to fit
-            stages.append({"process_std": fraction, "rms_innovations": float("inf"), "evaluations": 1,
-                           "seconds": time.perf_counter() - started})
-            if after_first_stage is not None and len(stages) == 1:
-                after_first_stage(stages[0]["rms_innovations"])
+            stage_ended({"process_std": fraction, "rms_innovations": float("inf"), "evaluations": 1,
+                         "seconds": time.perf_counter() - started})
             break
         # the variables this stage moves: all but the held parameters in the broad stages
         moving = np.array([not (name in HELD_BROAD and fraction > HELD_UNTIL) for name in pb.free] + [True] * n)
@@ -111,10 +115,8 @@ def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.nd
                             ftol=PREDICTION_ERROR_TOLERANCE)
         w = full(fit.x)
         rms = float(np.sqrt(np.sum(fit.fun ** 2) / n_seen)) if np.all(np.isfinite(fit.fun)) else float("inf")
-        stages.append({"process_std": fraction, "rms_innovations": rms, "evaluations": int(fit.nfev),
-                       "seconds": time.perf_counter() - started})
-        if after_first_stage is not None and len(stages) == 1:
-            after_first_stage(rms)
+        stage_ended({"process_std": fraction, "rms_innovations": rms, "evaluations": int(fit.nfev),
+                     "seconds": time.perf_counter() - started})
         if not rms <= give_up_above:
             break
     info = {"stages": stages, "rms_innovations": stages[-1]["rms_innovations"],
@@ -161,8 +163,6 @@ def prediction_error_attempts(pb: ShootingProblem, starts, x_first: np.ndarray, 
         out = [(theta, first, {**info, "start": 0})]
         if not info["stages"][0]["rms_innovations"] <= give_up_above or len(starts) == 1:
             return out
-        if not landing_runs:   # a fit that did not report its first stage: the other starts from here
-            others_first_stages(info["stages"][0]["rms_innovations"])
         landings = [(k, *run.result()) for k, run in enumerate(landing_runs, 1)]
         lowest, order = info["rms_innovations"], sorted(landings, key=lambda landing: (landing[3]["rms_innovations"],
                                                                                        landing[0]))

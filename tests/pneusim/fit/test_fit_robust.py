@@ -29,8 +29,6 @@
 """
 
 import json
-import threading
-import time
 
 import numpy as np
 import pytest
@@ -38,11 +36,9 @@ import pytest
 from pneusim.cli import main
 from pneusim.experiment import standard_experiment
 from pneusim.fit import fit_recording
-from pneusim.fit.deadline import FitDeadlineExceeded, cpu_deadline
 from pneusim.fit.setup import FitSetup
 from pneusim.fit.initial import initial_starts
-from pneusim.fit.prediction_error import prediction_error_attempts, prediction_error_fit
-from pneusim.fit.rescue_routes import nearby_start
+from pneusim.fit.prediction_error import prediction_error_fit
 from pneusim.fit.tracking import filtered_states, process_std, run_filter
 from pneusim.fit.rules import ABOVE_NOISE_WARNING, FAR_ABOVE_NOISE, INFORMATIVE_WINDOW
 from pneusim.fit.robustness import fit_free, hardest_cases, make_case, robustness_cases, score
@@ -365,64 +361,6 @@ def test_prediction_error_fit_recovers_a_chaotic_recording_from_the_data_sheet()
     errors = {name: estimates[name] / truth[name] - 1.0 for name in setup.free}
     assert info["rms_innovations"] < ABOVE_NOISE_WARNING, info
     assert max(abs(e) for e in errors.values()) < 0.05, errors
-
-
-@pytest.mark.slow
-def test_prediction_error_attempts_side_by_side_are_the_same_doubles_as_one_after_the_other():
-    """``s1007``'s first 600 samples (paper 2, open-loop multisine without pressures, chaotic): the
-    prediction-error fit from the data sheet and two nearby starts, on a problem with two simulators (the fits
-    in two threads, each on its own simulator) and one after the other on one of them: every attempt ends at the
-    same parameters, first state and innovations, to the last bit."""
-    spec = next(s for s in robustness_cases(48) if s.seed == 1007)
-    rig, truth, rec = make_case(spec)
-    setup = FitSetup(rec, rig, (), fit_free(True), None, None, None, 50)
-    pb, _, _ = setup.problem(600, 1e-6, 2)
-    first = initial_starts(pb, setup.theta_start, setup.recording, pb.data.n_samples)[0]
-    starts = [nearby_start(setup.theta_start, k) for k in range(3)]
-
-    def attempts(side_by_side):
-        return prediction_error_attempts(pb, starts, first, setup.lower, setup.upper, schedule=(1e-2, 1e-3),
-                                         side_by_side=side_by_side)
-
-    try:
-        side, alone = attempts(True), attempts(False)
-    finally:
-        pb.close()
-    assert len(side) == len(alone) >= 2
-    for (theta_s, first_s, info_s), (theta_a, first_a, info_a) in zip(side, alone):
-        assert info_s["start"] == info_a["start"]
-        assert (theta_s is None) == (theta_a is None)
-        if theta_s is not None:
-            np.testing.assert_array_equal(theta_s, theta_a)
-            np.testing.assert_array_equal(first_s, first_a)
-            assert info_s["rms_innovations"] == info_a["rms_innovations"]
-
-
-@pytest.mark.slow
-def test_prediction_error_attempts_side_by_side_stop_at_a_deadline_and_leave_no_thread():
-    """A caller's processor-time deadline that passes halfway through the route (the starts then run side by
-    side: the first start's first stage is a tenth of it) ends it with :class:`FitDeadlineExceeded` well before
-    the route's own end, and every thread the route started has ended by then: nothing integrates on the problem
-    after the call returns."""
-    spec = next(s for s in robustness_cases(48) if s.seed == 1007)
-    rig, truth, rec = make_case(spec)
-    setup = FitSetup(rec, rig, (), fit_free(True), None, None, None, 50)
-    pb, _, _ = setup.problem(600, 1e-6, 2)
-    first = initial_starts(pb, setup.theta_start, setup.recording, pb.data.n_samples)[0]
-    starts = [nearby_start(setup.theta_start, k) for k in range(5)]
-    threads_before = threading.active_count()
-    try:
-        started = time.process_time()
-        prediction_error_attempts(pb, starts, first, setup.lower, setup.upper)
-        whole_s = time.process_time() - started
-        started = time.process_time()
-        with pytest.raises(FitDeadlineExceeded), cpu_deadline(started + 0.5 * whole_s):
-            prediction_error_attempts(pb, starts, first, setup.lower, setup.upper)
-        stopped_s = time.process_time() - started
-        assert threading.active_count() == threads_before
-    finally:
-        pb.close()
-    assert stopped_s < 0.8 * whole_s, (stopped_s, whole_s)
 
 
 @pytest.mark.minutes

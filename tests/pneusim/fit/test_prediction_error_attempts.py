@@ -1,13 +1,21 @@
 """Which starts the prediction-error route continues, and which end it keeps, with a stand-in fit whose ends are
-given: the rule is deterministic whatever the arithmetic, the landings themselves are not."""
+given: the rule is deterministic whatever the arithmetic, the landings themselves are not.  Then the real fits
+side by side on a chaotic window: the same doubles as one after the other, and stopped cleanly by a deadline."""
 
+import threading
+import time
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from pneusim.fit import prediction_error
+from pneusim.fit.deadline import FitDeadlineExceeded, cpu_deadline
+from pneusim.fit.initial import initial_starts
+from pneusim.fit.prediction_error import prediction_error_attempts
 from pneusim.fit.rescue_routes import nearby_start
+from pneusim.fit.robustness import fit_free, make_case, robustness_cases
+from pneusim.fit.setup import FitSetup
 
 
 def _stand_in(ends: dict, landings: dict, calls: list):
@@ -20,6 +28,8 @@ def _stand_in(ends: dict, landings: dict, calls: list):
         rms = ends[k] if (whole or rest) else landings[k]
         calls.append((k, "whole" if whole else "rest" if rest else "landing"))
         theta = np.array([k, 1.0])                               # a landing carries its start's number
+        if hooks.get("after_first_stage"):
+            hooks["after_first_stage"](rms)
         return theta, x_first, {"stages": [{"rms_innovations": rms}] * (1 if not whole else 4),
                                 "rms_innovations": rms, "seconds": 0.0}
     return fit
@@ -70,6 +80,8 @@ def test_a_first_stage_far_above_noise_tries_no_other_start(monkeypatch):
 
     def fit(pb, theta0, x_first, lower, upper, schedule, give_up_above=np.inf, **hooks):
         calls.append(theta0[0])
+        if hooks.get("after_first_stage"):
+            hooks["after_first_stage"](5.0)
         return theta0, x_first, {"stages": [{"rms_innovations": 5.0}], "rms_innovations": 5.0, "seconds": 0.0}
 
     monkeypatch.setattr(prediction_error, "prediction_error_fit", fit)
@@ -101,3 +113,61 @@ def test_nearby_starts_are_the_same_on_every_run_and_tiny(attempt):
     np.testing.assert_array_equal(moved, nearby_start(theta0, attempt))
     assert np.all(np.abs(moved / theta0 - 1.0) <= 1e-6) and np.any(moved != theta0)
     np.testing.assert_array_equal(nearby_start(theta0, 0), theta0)
+
+
+def _chaotic_window(n_starts: int):
+    """``(problem with two simulators, setup, first state, starts)``: the first 600 samples of ``s1007`` (paper 2,
+    open-loop multisine without pressures, chaotic) from the data sheet, the start and ``n_starts - 1`` nearby."""
+    spec = next(s for s in robustness_cases(48) if s.seed == 1007)
+    rig, _, recording = make_case(spec)
+    setup = FitSetup(recording, rig, (), fit_free(True), None, None, None, 50)
+    pb, _, _ = setup.problem(600, 1e-6, 2)
+    first = initial_starts(pb, setup.theta_start, setup.recording, pb.data.n_samples)[0]
+    return pb, setup, first, [nearby_start(setup.theta_start, k) for k in range(n_starts)]
+
+
+@pytest.mark.slow
+def test_prediction_error_attempts_side_by_side_are_the_same_doubles_as_one_after_the_other():
+    """The prediction-error fit from the data sheet and two nearby starts, on a problem with two simulators (the
+    fits in two threads, each on its own simulator) and one after the other on one of them: every attempt ends at
+    the same parameters, first state and innovations, to the last bit."""
+    pb, setup, first, starts = _chaotic_window(3)
+
+    def attempts(side_by_side):
+        return prediction_error_attempts(pb, starts, first, setup.lower, setup.upper, schedule=(1e-2, 1e-3),
+                                         side_by_side=side_by_side)
+
+    try:
+        side, alone = attempts(True), attempts(False)
+    finally:
+        pb.close()
+    assert len(side) == len(alone) >= 2
+    for (theta_s, first_s, info_s), (theta_a, first_a, info_a) in zip(side, alone):
+        assert info_s["start"] == info_a["start"]
+        assert (theta_s is None) == (theta_a is None)
+        if theta_s is not None:
+            np.testing.assert_array_equal(theta_s, theta_a)
+            np.testing.assert_array_equal(first_s, first_a)
+            assert info_s["rms_innovations"] == info_a["rms_innovations"]
+
+
+@pytest.mark.slow
+def test_prediction_error_attempts_side_by_side_stop_at_a_deadline_and_leave_no_thread():
+    """A caller's processor-time deadline that passes halfway through the route (the starts then run side by
+    side: the first start's first stage is a tenth of it) ends it with :class:`FitDeadlineExceeded` well before
+    the route's own end, and every thread the route started has ended by then: nothing integrates on the problem
+    after the call returns."""
+    pb, setup, first, starts = _chaotic_window(5)
+    threads_before = threading.active_count()
+    try:
+        started = time.process_time()
+        prediction_error_attempts(pb, starts, first, setup.lower, setup.upper)
+        whole_s = time.process_time() - started
+        started = time.process_time()
+        with pytest.raises(FitDeadlineExceeded), cpu_deadline(started + 0.5 * whole_s):
+            prediction_error_attempts(pb, starts, first, setup.lower, setup.upper)
+        stopped_s = time.process_time() - started
+        assert threading.active_count() == threads_before
+    finally:
+        pb.close()
+    assert stopped_s < 0.8 * whole_s, (stopped_s, whole_s)
