@@ -17,11 +17,8 @@
    noise after a pre-fit above noise, is retried from the next start (:data:`.rules.START_FACTORS`; the best
    kept; a start whose pre-fit ends where an earlier one's did is not fitted again), unless the pre-fit
    itself ends more than :data:`.rules.MODEL_SHORT` times above noise (the model lacks physics there).  Where
-   the first start's pre-fit ends above noise (but within :data:`.rules.MODEL_SHORT`), the other starts' trust
-   regions on the window run before any whole fit, and one that reaches noise has its whole fit first.  Where
-   the first start's trust region on the whole part ends above noise, the prediction-error route (4.) runs
-   before IPOPT finishes it, and before the next start; no other start is tried where it brings the fit to
-   noise;
+   the first start's fit ends above noise, the prediction-error route (4.) runs before the next start, and no
+   other start is tried where it brings the fit to noise;
 4. **rescue routes** — where the best fit still ends above noise, but neither it nor every pre-fit more than
    :data:`.rules.MODEL_SHORT` times above it: segment starts tracked by an extended Kalman filter
    (:func:`.rescue_routes.tracked_route`, ``solver["tracked_route"]``), from the best fit's point and, until one
@@ -168,48 +165,28 @@ class PhysicalFit:
         conductance, say) that the whole part tells apart: a fit that ends well above its pre-fit's residual
         is retried from the next start (``docs/decisions/0013``).  Where the first start's fit ends above noise,
         the prediction-error route runs before the next start, which is tried only where that route does not
-        bring the fit to noise (``docs/decisions/0103``).  Where the first start's pre-fit ends above noise but
-        within :data:`.rules.MODEL_SHORT`, the other starts' trust regions on the window run first, and the whole
-        part is fitted first from one that reaches noise (``docs/decisions/0114``)."""
+        bring the fit to noise (``docs/decisions/0103``)."""
         setup = run.setup
         run.open_window(self.prefit_samples)
-        thetas = [np.clip(setup.theta_start * np.array([factors.get(name, 1.0) for name in setup.free]),
-                          setup.lower, setup.upper) for factors in START_FACTORS[:max(1, self.starts)]]
-        prefits = {0: self._prefit(run, 0, thetas[0])}
-        ahead, fitted = {}, set()
-        if prefits[0] is not None and ABOVE_NOISE_WARNING < prefits[0][1] <= MODEL_SHORT and len(thetas) > 1:
-            # a restart is coming unless the first start's whole fit mends its pre-fit: the other starts' trust
-            # regions on the window cost seconds where a whole fit above noise and its rescue cost a minute; one
-            # at noise is the likelier basin, and its whole fit goes first (0114)
-            ahead = {k: self._prefit_trust_region(run, k, thetas[k]) for k in range(1, len(thetas))}
-            at_noise = [(trust[1], k) for k, trust in ahead.items() if trust[1] <= ABOVE_NOISE_WARNING]
-            if at_noise:
-                k = min(at_noise)[1]
-                prefits[k] = self._prefit(run, k, thetas[k], ahead[k])
-                if prefits[k] is not None:
-                    run.say(f"start {k + 1}: its pre-fit reached noise where start 1's did not: its whole fit first")
-                    fitted.add(k)
-                    if self._whole_fit(run, k, *prefits[k]) <= ABOVE_NOISE_WARNING:
-                        return _best(run)
-        for k, theta0 in enumerate(thetas):
-            if k in fitted:
-                continue
-            pre = prefits[k] if k in prefits else self._prefit(run, k, theta0, ahead.get(k))
+        for k, factors in enumerate(START_FACTORS[:max(1, self.starts)]):
+            theta0 = np.clip(setup.theta_start * np.array([factors.get(name, 1.0) for name in setup.free]),
+                             setup.lower, setup.upper)
+            pre = self._prefit(run, k, theta0)
             if pre is None:
                 continue
             rms_pre, rms = pre[1], self._whole_fit(run, k, *pre)
-            if k == 0 and (rms > ABOVE_NOISE_WARNING or run.early_route is not None):
+            if k == 0 and rms > ABOVE_NOISE_WARNING:
                 # the prediction-error route before the other starts: where the first start fails on a recording
-                # too chaotic for the shooting problem's landscape, the others fail there too (0103); where it
-                # ran before IPOPT, its report, and its fit where lower (0114)
+                # too chaotic for the shooting problem's landscape, the others fail there too (0103)
                 if normalised_rms(run.pb, self._prediction_error(run, _best(run))) <= ABOVE_NOISE_WARNING:
                     break
             if not self._restart(run, k, rms, rms_pre):
                 break
         return _best(run)
 
-    def _prefit_trust_region(self, run: "FitRun", k: int, theta0):
-        """Start ``k``'s trust region on the window from ``theta0``: ``(v, rms, attempt)``, the attempt recorded."""
+    def _prefit(self, run: "FitRun", k: int, theta0):
+        """Start ``k``'s pre-fit from ``theta0`` on the window, and its short-segment route where that applies:
+        ``(v, rms)``, or None where it ended where an earlier start's did (the same basin: not fitted again)."""
         pb, lo, hi = run.window
         chained = initial_starts(pb, theta0, run.window_recording, pb.data.n_samples)
         if k == 0 and run.window_start == 0:
@@ -221,16 +198,7 @@ class PhysicalFit:
         run.say(f"start {k + 1}, pre-fit ({pb.data.n_samples} samples{where}): trust region {info['status']} after "
                 f"{info['evaluations']} evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_pre:.3g}"
                 + routes_text(info))
-        return v_pre, rms_pre, attempt
-
-    def _prefit(self, run: "FitRun", k: int, theta0, trust=None):
-        """Start ``k``'s pre-fit from ``theta0`` on the window (its trust region ``trust`` where already run:
-        :meth:`_prefit_trust_region`), and its short-segment route where that applies: ``(v, rms)``, or None
-        where it ended where an earlier start's did (the same basin: not fitted again)."""
-        pb, lo, hi = run.window
-        v_pre, rms_pre, attempt = trust if trust is not None else self._prefit_trust_region(run, k, theta0)
-        same = [a["start"] for a in run.attempts if a["start"] < k + 1
-                and abs(rms_pre / a["rms_normalised"] - 1.0) < SAME_PREFIT]
+        same = [a["start"] for a in run.attempts[:-1] if abs(rms_pre / a["rms_normalised"] - 1.0) < SAME_PREFIT]
         if same:
             attempt["fit_skipped"] = f"pre-fit ended where start {same[0]}'s did"
             run.say(f"start {k + 1}: the pre-fit ended where start {same[0]}'s did ({rms_pre:.3g}), the same basin: "
@@ -249,11 +217,7 @@ class PhysicalFit:
 
     def _whole_fit(self, run: "FitRun", k: int, v_pre, rms_pre: float) -> float:
         """The whole estimation part from start ``k``'s pre-fit ``v_pre``: the trust region, then the exact
-        problem (Gauss-Newton settling, else IPOPT); the fit joins ``run.fits``.  Returns its normalised rms.
-
-        Where the first start's trust region ends above noise, the prediction-error route runs before IPOPT,
-        and IPOPT finishes the start's own fit only where the route does not reach noise: from a trust region
-        above noise IPOPT spent 13-24 s and ended higher, where the route reached noise (``docs/decisions/0114``)."""
+        problem (Gauss-Newton settling, else IPOPT); the fit joins ``run.fits``.  Returns its normalised rms."""
         pb, lo, hi = run.pb, run.lo, run.hi
         theta0, prefit_states = run.window[0].split(v_pre)
         x_init = self._whole_starts(run, theta0, prefit_states)
@@ -261,28 +225,17 @@ class PhysicalFit:
         run.say(f"start {k + 1}, fit ({run.setup.n_est} samples): trust region {info['status']} after "
                 f"{info['evaluations']} evaluations ({info['seconds']:.1f} s), normalised rms residual {rms_ls:.3g}"
                 + routes_text(info))
-        attempt = next(a for a in run.attempts if a["start"] == k + 1)
         # IPOPT on the kept route's point, unless the direct route's was already finished and kept; where
         # the continuation was kept over a finished direct route, the better of the two finished fits
         finished = info.pop("finished", None)
-        if k == 0 and rms_ls > ABOVE_NOISE_WARNING and not (finished is not None and info["route"] == "direct"):
-            run.early_route = self._prediction_error_route(run, rms_ls)
-            done, route = run.early_route
-            if done is not None and np.isfinite(done.objective) and normalised_rms(pb, done) <= ABOVE_NOISE_WARNING:
-                rms = normalised_rms(pb, done)
-                attempt.update(fit_rms_normalised=rms, fit_routes=info["routes"],
-                               ipopt_status="not run: the prediction-error route reached noise")
-                run.early_route = None
-                self._keep_prediction_error(run, None, done, route)
-                return rms
         if finished is not None and info["route"] == "direct":
             res, rms = finished
         else:
             res, rms = run.finish(v_ls, rms_ls)
         if finished is not None and info["route"] != "direct" and finished[0].objective < res.objective:
             res, rms = finished
-        attempt.update(fit_rms_normalised=rms, fit_routes=info["routes"], ipopt_status=res.status,
-                       ipopt_iterations=res.iterations)
+        run.attempts[-1].update(fit_rms_normalised=rms, fit_routes=info["routes"], ipopt_status=res.status,
+                                ipopt_iterations=res.iterations)
         run.fits.append((res.objective if np.isfinite(res.objective) else np.inf, k, res))
         run.say(f"start {k + 1}, fit: {stopped_by(res)}, normalised rms residual {rms:.3g}")
         return rms
@@ -395,16 +348,9 @@ class PhysicalFit:
         return res
 
     def _prediction_error(self, run: "FitRun", res):
-        """The prediction-error route from the start against the best fit ``res`` (the one the first start's
-        whole fit already ran, where it did: :meth:`_whole_fit`); its fit joins ``run.fits`` where kept, its
-        report ``run.predicted``.  Returns the better of the two."""
-        early, run.early_route = run.early_route, None
-        done, route = early if early is not None else self._prediction_error_route(run, normalised_rms(run.pb, res))
-        return self._keep_prediction_error(run, res, done, route)
-
-    def _prediction_error_route(self, run: "FitRun", rms: float):
-        """``(finished fit or None, report)`` of the prediction-error route against a best fit at normalised rms
-        ``rms``, on a window at the recording's start (the filter tracks the whole part from there)."""
+        """The prediction-error route from the start against the best fit ``res``, on a window at the recording's
+        start (the filter tracks the whole part from there); its fit joins ``run.fits`` where kept, its report
+        ``run.predicted``.  Returns the better of the two."""
         setup = run.setup
         if run.window_start > 0:
             window = run.problem(min(setup.n_est, self.prefit_samples))[0]
@@ -412,20 +358,11 @@ class PhysicalFit:
         else:
             window, first = run.window[0], run.first_at_start
         try:
-            return self.stages.prediction_error(window, run.pb, run.lo, run.hi, setup.theta_start, first, rms,
-                                                 run.finish)
+            res, route = better(res, *self.stages.prediction_error(
+                window, run.pb, run.lo, run.hi, setup.theta_start, first, normalised_rms(run.pb, res), run.finish))
         finally:
             if window is not run.window[0]:
                 window.close()
-
-    def _keep_prediction_error(self, run: "FitRun", res, done, route):
-        """The route's fit ``done`` where it is lower than ``res`` (None: no fit to beat), its report ``route`` to
-        ``run.predicted``, its stage line.  Returns the better fit."""
-        if res is None:
-            route["kept"] = bool(done is not None and np.isfinite(done.objective))
-            res = done
-        else:
-            res, route = better(res, done, route)
         run.predicted = route
         if route["kept"]:
             run.fits.append((res.objective, len(START_FACTORS), res))

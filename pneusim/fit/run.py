@@ -40,7 +40,6 @@ class FitRun:
         self.attempts, self.fits = [], []
         self.prefit_points = []   # (normalised rms on the window, start, scaled parameters) of each pre-fit
         self.tracked = self.predicted = None
-        self.early_route = None   # the prediction-error route the first whole fit ran before IPOPT: (fit, report)
         self.defect_sum_squares = float("nan")
 
     def problem(self, stop: int, segment: int | None = None, start: int = 0):
