@@ -11,7 +11,8 @@ fit, and goes on with what it has; the result's ``status`` says which step was r
 
 The budget counts the process's processor time (every thread of it), not the wall clock: on an idle machine a
 diagnosis then ends within its budget in wall time too, and on a loaded one the answer does not depend on what
-else runs.
+else runs.  It does depend on the CPU's speed: a machine half as fast buys half the search, and a recording whose
+search the budget stops can end with fewer findings there (``docs/decisions/0115``).
 """
 
 from __future__ import annotations
