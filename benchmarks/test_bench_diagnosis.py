@@ -21,7 +21,8 @@ vocabulary effects, and physics outside the vocabulary as ``{"effect": "other", 
 * **median validation fit** before (nominal) and after (final) on the effect cases without physics outside
   the vocabulary;
 * **median and worst time** per recording, the CPU time of the worst, the median of each stage's time, and
-  the ratio of the median time to the nominal fit alone measured in the same run.
+  the ratio of the median time to the nominal fit alone measured in the same run; per recording also the time
+  budget used (counted in model work, the same on every machine).
 
 The table is written to ``results/diagnosis-<set>/score.md`` beside the per-recording results and
 ``summary.csv``, and to ``docs/results/diagnosis-<set>.md`` with the commit, machine, date and command
@@ -93,7 +94,8 @@ def _entry(row, case) -> dict:
     result = row.get("result") or {}
     return {"recording": row["recording"], "truth": truth, "oov": oov, "found": found, "status": row["status"],
             "nominal": row["nominal_fit_percent"], "final": row["final_fit_percent"], "seconds": row["seconds"],
-            "cpu": (result.get("timing") or {}).get("cpu_s"), "timing": result.get("timing") or {},
+            "cpu": (result.get("timing") or {}).get("cpu_s"), "budget": (result.get("timing") or {}).get("budget_s"),
+            "timing": result.get("timing") or {},
             "run_status": result.get("status", ""), "error": row["error"],
             "named": len(set(truth) & set(vocabulary)), "false": sorted(set(vocabulary) - set(truth)),
             "other": "other" in found,
@@ -117,7 +119,7 @@ def score(rows, cases) -> dict:
         e.setdefault("ok", e["fully_right"])
     in_vocabulary = [e for e in entries if e["truth"] and not e["oov"]]
     times = [e["seconds"] for e in entries if e["seconds"] is not None]
-    stages = sorted({k for e in entries for k in e["timing"] if k.endswith("_s") and k not in ("total_s", "cpu_s")})
+    stages = sorted({k for e in entries for k in e["timing"] if k.endswith("_s") and k not in ("total_s", "cpu_s", "budget_s")})
     return {
         "recall": (sum(e["named"] for e in entries), sum(len(e["truth"]) for e in entries)),
         "fully_right": (sum(e["fully_right"] for e in entries), len(entries)),
@@ -173,17 +175,18 @@ def _table(s, load, ratio) -> str:
              f"| recordings stopped by the time budget | {s['unfinished']} |",
              f"| recordings that failed | {s['failed']} |",
              f"| machine load during the run (uptime) | {load} |", "",
-             "| recording | truth | found | nominal fit % | final fit % | s | CPU s | fully right |",
-             "|---|---|---|---|---|---|---|---|"]
+             "| recording | truth | found | nominal fit % | final fit % | s | CPU s | budget s | fully right |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for e in s["cases"]:
         nominal = f"{e['nominal']:.2f}" if e["nominal"] is not None else "-"
         final = f"{e['final']:.2f}" if e["final"] is not None else "-"
         truth = " + ".join(e["truth"] + [f"other ({n})" for n in e["oov"]]) or "none"
         cpu = f"{e['cpu']:.0f}" if e["cpu"] is not None else "-"
+        budget = f"{e['budget']:.0f}" if e["budget"] is not None else "-"
         seconds = f"{e['seconds']:.0f}" if e["seconds"] is not None else "-"
         status = "" if e["run_status"] in ("", "complete") else f" ({e['run_status']})"
         lines.append(f"| {e['recording']} | {truth} | {' '.join(e['found']) or 'none'}{status} | {nominal} | "
-                     f"{final} | {seconds} | {cpu} | {'yes' if e['fully_right'] else 'NO'} |")
+                     f"{final} | {seconds} | {cpu} | {budget} | {'yes' if e['fully_right'] else 'NO'} |")
     return "\n".join(lines) + "\n"
 
 

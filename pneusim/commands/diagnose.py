@@ -64,7 +64,8 @@ def register(sub) -> None:
                    help="at most this many vocabulary effects modelled together (default 2; 3 with "
                         "--several-effects)")
     p.add_argument("--time-budget", type=float, default=None, metavar="SECONDS",
-                   help="processor seconds a recording's diagnosis may take: no fit runs past it, and the result, "
+                   help="seconds a recording's diagnosis may take on the reference machine (counted in model "
+                        "work, so the answer is the same on every machine): no fit runs past it, and the result, "
                         "with what was found before, says so (default: ten times the nominal fit's, at least "
                         "240; 240 with --several-effects; none with --no-several-effects)")
     p.add_argument("--json", metavar="OUT.json", help="write the JSON result (one recording)")

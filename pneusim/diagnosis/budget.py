@@ -2,17 +2,20 @@
 
 A diagnosis is a sequence of fits, from seconds to minutes each, and none can be stopped half-way and give a
 fit.  :class:`Budget` is asked before each costly step whether the step fits in what is left, the step's
-expected cost measured on this recording (a whole fit: the nominal fit's own processor time); a step that does
-not fit is not started, and one that started is stopped at the budget's end (a processor-time deadline every
-evaluation of a fit checks, :mod:`pneusim.fit.deadline`).  :func:`gated_stages` puts both in front of every fit
-and screening a diagnosis calls: a refused or stopped step raises :class:`TimeBudgetExhausted`, a
-:class:`~pneusim.errors.PneusimError`, so every step reports it in its candidate's trial as it reports a failed
-fit, and goes on with what it has; the result's ``status`` says which step was refused or stopped.
+expected cost measured on this recording (a whole fit: the nominal fit's own cost); a step that does not fit is
+not started, and one that started is stopped at the budget's end (a deadline every evaluation of a fit checks,
+:mod:`pneusim.fit.deadline`).  :func:`gated_stages` puts both in front of every fit and screening a diagnosis
+calls: a refused or stopped step raises :class:`TimeBudgetExhausted`, a :class:`~pneusim.errors.PneusimError`,
+so every step reports it in its candidate's trial as it reports a failed fit, and goes on with what it has; the
+result's ``status`` says which step was refused or stopped.
 
-The budget counts the process's processor time (every thread of it), not the wall clock: on an idle machine a
-diagnosis then ends within its budget in wall time too, and on a loaded one the answer does not depend on what
-else runs.  It does depend on the CPU's speed: a machine half as fast buys half the search, and a recording whose
-search the budget stops can end with fewer findings there (``docs/decisions/0115``).
+The budget is given in seconds and counted in model work (:mod:`pneusim.solver.work`: samples integrated, one
+unit a column), at :data:`.rules.WORK_UNITS_PER_S` units a second -- the rate of the reference machine, a 2-core
+Xeon VM, idle.  Which steps fit is then the same on every machine, idle or loaded, and so is the answer; a machine
+half as fast takes twice as long over it (a processor-time budget bought it half the search and another answer:
+``docs/decisions/0115``, ``0116``).  A processor-time backstop, :data:`.rules.BUDGET_BACKSTOP` times the budget,
+ends a search whose work the count misses (a model so stiff at a point tried that one sample takes seconds);
+the status says when it did.
 """
 
 from __future__ import annotations
@@ -23,7 +26,9 @@ import math
 import time
 
 from ..errors import PneusimError
-from ..fit.deadline import cpu_deadline
+from ..fit.deadline import work_deadline
+from ..solver import work
+from .rules import BUDGET_BACKSTOP, WORK_UNITS_PER_S
 
 __all__ = ["Budget", "TimeBudgetExhausted", "gated_stages"]
 
@@ -33,31 +38,36 @@ class TimeBudgetExhausted(PneusimError):
 
 
 class Budget:
-    """At most ``seconds`` of processor time for one diagnosis (``math.inf``: no limit), counted from
-    construction."""
+    """At most ``seconds`` (``math.inf``: no limit) for one diagnosis, counted in model work from construction
+    (:data:`.rules.WORK_UNITS_PER_S` units a second), with a processor-time backstop."""
 
     def __init__(self, seconds: float = math.inf):
         if not seconds > 0:
             raise PneusimError(f"the diagnosis's time budget must be a positive number of seconds, got {seconds}")
         self.seconds = float(seconds)
-        self.started = time.process_time()
+        self.started, self.cpu_started = work.done(), time.process_time()
         #: the first step refused and why (None: none was refused)
         self.stopped: str | None = None
 
     def used(self) -> float:
-        """Processor seconds used so far."""
-        return time.process_time() - self.started
+        """Seconds of the budget used so far: the work done since construction, at the reference rate."""
+        return (work.done() - self.started) / WORK_UNITS_PER_S
 
     def left(self) -> float:
-        """Processor seconds left (negative once overspent)."""
+        """Seconds left (negative once overspent)."""
         return self.seconds - self.used()
 
+    def deadline(self):
+        """A :func:`pneusim.fit.deadline.work_deadline` block at the budget's end, with its backstop."""
+        return work_deadline(self.started + self.seconds * WORK_UNITS_PER_S,
+                             self.cpu_started + BUDGET_BACKSTOP * self.seconds)
+
     def check(self, step: str, cost_s: float) -> None:
-        """Raise :class:`TimeBudgetExhausted` where ``step``, expected to cost ``cost_s`` processor seconds,
+        """Raise :class:`TimeBudgetExhausted` where ``step``, expected to cost ``cost_s`` seconds of the budget,
         does not fit in what is left; the first refusal is recorded in :attr:`stopped`."""
         if self.stopped is None and self.used() + max(0.0, cost_s) <= self.seconds:
             return
-        reason = (f"{step} (expected {cost_s:.0f} s of processor time) does not fit in the "
+        reason = (f"{step} (expected {cost_s:.0f} s) does not fit in the "
                   f"{max(self.left(), 0.0):.0f} s left of the {self.seconds:.0f} s time budget")
         self.stop(reason)
         raise TimeBudgetExhausted(f"not started: {reason}")
@@ -80,9 +90,9 @@ _GATED = {"refit": True, "fit": True, "prefit": False, "screen": False, "polishe
 
 def gated_stages(stages, budget: Budget, fit_cost_s: float):
     """``stages`` (:class:`~.estimator.DiagnosisStages`) with every fit and screening asking ``budget`` first:
-    a whole fit is expected to cost ``fit_cost_s`` processor seconds (the nominal fit's), a pre-fit or a
+    a whole fit is expected to cost ``fit_cost_s`` seconds of the budget (the nominal fit's), a pre-fit or a
     screening nothing beyond what is already spent (it is refused only once the budget is overspent).  A step
-    that started runs under the budget's end as a deadline (:func:`pneusim.fit.deadline.cpu_deadline`): a fit
+    that started runs under the budget's end as a deadline (:meth:`Budget.deadline`): a fit
     that would run past it stops at its next evaluation, and the step raises :class:`TimeBudgetExhausted`
     whatever the fit returned (a fit stopped half-way is no result)."""
     def gate(name: str, call, whole: bool):
@@ -91,7 +101,7 @@ def gated_stages(stages, budget: Budget, fit_cost_s: float):
         @functools.wraps(call)
         def gated(*args, **kwargs):
             budget.check(step, fit_cost_s if whole else 0.0)
-            with cpu_deadline(budget.started + budget.seconds) as deadline:
+            with budget.deadline() as deadline:
                 try:
                     out = call(*args, **kwargs)
                 except Exception:
@@ -99,7 +109,8 @@ def gated_stages(stages, budget: Budget, fit_cost_s: float):
                         raise
                     out = None
             if deadline.reached:
-                budget.stop(f"{step} ran to the end of the {budget.seconds:.0f} s time budget and was stopped")
+                budget.stop(f"{step} ran to the end of the {budget.seconds:.0f} s time budget and was stopped"
+                            + (" (by its processor-time backstop)" if deadline.by_backstop else ""))
                 raise TimeBudgetExhausted(f"stopped: {budget.stopped}")
             return out
         return gated

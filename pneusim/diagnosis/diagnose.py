@@ -49,9 +49,10 @@ def diagnose(recording, rig=None, *, effects=None, validation_fraction: float = 
         one-effect-first search's findings leave the recording unexplained, it goes on from them; True: from
         the first finding on; False: never.
     time_budget_s : float, optional
-        Processor seconds the diagnosis may take: no fit that would end past it is started, one that runs past
-        it is stopped, and the result (``status``) says which step; default :func:`.rules.default_budget_s` (ten
-        nominal fits' processor time, at least :data:`.rules.TIME_BUDGET_S`), :data:`.rules.TIME_BUDGET_S` with
+        Seconds the diagnosis may take, counted in model work at the reference machine's rate (the same search
+        and answer on every machine; :mod:`.budget`): no fit that would end past it is started, one that runs
+        past it is stopped, and the result (``status``) says which step; default :func:`.rules.default_budget_s`
+        (ten nominal fits, at least :data:`.rules.TIME_BUDGET_S`), :data:`.rules.TIME_BUDGET_S` with
         ``several_effects=True``, no limit with ``several_effects=False``.
 
     Returns

@@ -56,7 +56,6 @@ import numpy as np
 
 from ..errors import FitError, PneusimError
 from ..fit import prefit_recording
-from ..fit.deadline import cpu_deadline
 from ..fit.setup import rig_of
 from ..fit.threads import one_blas_thread
 from ..recording import Recording, read_recording
@@ -209,7 +208,7 @@ class Diagnosis:
             max_findings = MAX_FINDINGS_SEVERAL if several_effects else MAX_FINDINGS
         if time_budget_s is None and several_effects is not None:
             time_budget_s = TIME_BUDGET_S if several_effects else math.inf
-        #: processor seconds; None: set once the nominal fit's cost is known (:func:`.rules.default_budget_s`)
+        #: seconds, counted in model work (:mod:`.budget`); None: set once the nominal fit's cost is known (:func:`.rules.default_budget_s`)
         self.time_budget_s = time_budget_s
         self.max_refits, self.max_lookalikes, self.max_findings = max_refits, max_lookalikes, max_findings
         self.screen_samples, self.progress, self.stages = screen_samples, progress, stages
@@ -231,10 +230,10 @@ class Diagnosis:
         _check_input(recording, rig, self.validation_fraction)
         nominal = self._nominal_fit(recording, rig, name, budget)                             # 1. nominal fit
         t_nominal = time.perf_counter() - started
-        nominal_cpu_s = budget.used()
+        nominal_s = budget.used()
         if self.time_budget_s is None:
-            budget.seconds = default_budget_s(nominal_cpu_s)
-        stages = gated_stages(self.stages, budget, nominal_cpu_s)
+            budget.seconds = default_budget_s(nominal_s)
+        stages = gated_stages(self.stages, budget, nominal_s)
         noise = noise_levels(recording, nominal.rig)
         states = named_states(nominal)
         windows, _ = self.stages.locate(recording, nominal.rig, states, noise)                # 2. locate
@@ -284,7 +283,8 @@ class Diagnosis:
                     "refits_s": time.perf_counter() - started - t_nominal - t_screen,
                     "first_finding_s": t_first - t_started - t_screen, "on_top_s": t_on_top - t_first,
                     "drop_one_s": t_drop_one - t_on_top,
-                    "cpu_s": time.process_time() - cpu_started},   # this process's: both fit threads
+                    "cpu_s": time.process_time() - cpu_started,    # this process's: both fit threads
+                    "budget_s": budget.used()},                    # the work counted, in the budget's seconds
             nominal_fit=nominal, final_fit=final, signatures=signatures,
             fits={k: v[0] for k, v in run.refits.items()})
         self._say(name, f"findings {', '.join(result.effects) or 'none'}; final fit {final.fit_percent:.2f} % "
@@ -307,13 +307,13 @@ class Diagnosis:
         """1. The nominal fit (``stages.nominal_fit``); a recording it cannot start on, or whose nominal fit
         alone runs past the time budget (nothing can be judged without it), is refused in one sentence."""
         self._say(name, "nominal fit")
-        with cpu_deadline(budget.started + budget.seconds) as deadline:
+        with budget.deadline() as deadline:
             try:
                 return self.stages.nominal_fit(recording, rig, self.validation_fraction)
             except PneusimError as exc:
                 if deadline.reached:
                     raise FitError(f"{name}: the nominal fit alone ran past the diagnosis's time budget of "
-                                   f"{budget.seconds:.0f} s of processor time (give a larger --time-budget)") from None
+                                   f"{budget.seconds:.0f} s (give a larger --time-budget)") from None
                 raise FitError(f"{name}: the nominal fit failed on this recording: {exc}") from None
 
     def _run(self, recording, nominal, noise: dict, name: str, stages) -> DiagnosisRun:

@@ -160,7 +160,7 @@ class DiagnosisResult:
         ``nominal_fit_s``, ``screening_s``, ``refits_s``: wall time of each stage, the refits split into
         ``first_finding_s`` (confirming the first round and the delay scan), ``on_top_s`` (the search on top of
         the findings) and ``drop_one_s``; ``cpu_s``: the diagnosis's processor time (this process, both fit
-        threads).
+        threads); ``budget_s``: the time budget it used (model work at the reference rate, :mod:`.budget`).
     nominal_fit, final_fit : FitResult
         The fits themselves (for plots; not part of the JSON).
     """

@@ -34,7 +34,7 @@ __all__ = [
     "RIVAL_WINDOW", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS",
     "MIN_IMPROVEMENT_POINTS", "ERROR_SHRINK", "CLEARLY_SHORT", "AT_NOISE", "PERFECT_ERROR",
     "DELAY_SCAN_ERROR_RATIO", "SCAN_FACTOR", "SCAN_REFITS", "DELAY_GRID_PER_SAMPLE", "MIN_DELAY_SAMPLES",
-    "ON_TOP_REFITS", "OTHER_RESIDUAL", "FURTHER_SEARCH_RESIDUAL", "MAX_CLOSEST", "TIME_BUDGET_S", "BUDGET_NOMINAL_FITS", "default_budget_s", "COMMAND_MAP_SPAN", "COMMAND_MAP_BINS",
+    "ON_TOP_REFITS", "OTHER_RESIDUAL", "FURTHER_SEARCH_RESIDUAL", "MAX_CLOSEST", "TIME_BUDGET_S", "WORK_UNITS_PER_S", "BUDGET_BACKSTOP", "BUDGET_NOMINAL_FITS", "default_budget_s", "COMMAND_MAP_SPAN", "COMMAND_MAP_BINS",
     "SOLVER_FAILURES",
     "bic_penalty", "information_gain", "noise_floor_points", "validation_room", "passes_test", "keep_test_text",
     "screening_route", "is_solver_failure", "rules_table", "table_markdown",
@@ -174,11 +174,21 @@ OTHER_RESIDUAL = 3.0
 FURTHER_SEARCH_RESIDUAL = fit_rules.ABOVE_NOISE_WARNING
 #: (candidates) the ``other`` finding names at most this many closest vocabulary candidates, with why each failed
 MAX_CLOSEST = 3
-#: (s of processor time) with several effects searched for from the first finding on (``several_effects=True``), a
-#: diagnosis starts no fit that would end past this and stops one that runs past it, unless told otherwise: it
-#: returns what it has, its status naming the step refused (five minutes of wall time on a busy two-core machine)
+#: (s, counted in model work at WORK_UNITS_PER_S) with several effects searched for from the first finding on
+#: (``several_effects=True``), a diagnosis starts no fit that would end past this and stops one that runs past it,
+#: unless told otherwise: it returns what it has, its status naming the step refused (five minutes of wall time on
+#: a busy two-core machine)
 TIME_BUDGET_S = 240.0
-#: (nominal fits) by default a diagnosis may cost this many times its nominal fit's processor time, and at least
+#: (units of model work a second) the rate at which the budget's seconds are counted in model work (samples
+#: integrated, one unit a column, :mod:`pneusim.solver.work`): the diagnoses' work over their processor time on
+#: the reference machine (a 2-core Xeon VM, idle, one BLAS thread per process; 0.667e6 on two several-effects
+#: diagnoses the budget stopped, single fits 0.3e6 to 0.75e6), so that a budget there lasts about its seconds of
+#: processor time and, counted in work, buys the same search on every machine (decision record 0116)
+WORK_UNITS_PER_S = 0.65e6
+#: (times the budget, s of processor time) the backstop that ends a search whose work the count misses (a model so
+#: stiff at a point tried that one sample takes seconds): far above what a budget's work costs on any machine in use
+BUDGET_BACKSTOP = 4.0
+#: (nominal fits) by default a diagnosis may cost this many times its nominal fit's share of the budget, and at least
 #: TIME_BUDGET_S: a recording whose every fit is slow gets the same number of fits as one whose fits are quick, and
 #: none runs unbounded (the default search took a median 4.8 nominal fits on practice2, where it had no budget)
 BUDGET_NOMINAL_FITS = 10.0
@@ -211,10 +221,10 @@ def noise_floor_points(recording, n_est: int, noise: dict) -> float:
     return 100.0 * noise["position_m"] * math.sqrt(y.size) / den if den > 0 else float("inf")
 
 
-def default_budget_s(nominal_cpu_s: float) -> float:
-    """The default diagnosis's time budget, processor seconds: :data:`BUDGET_NOMINAL_FITS` times the nominal fit's
-    processor time ``nominal_cpu_s``, at least :data:`TIME_BUDGET_S`."""
-    return max(TIME_BUDGET_S, BUDGET_NOMINAL_FITS * nominal_cpu_s)
+def default_budget_s(nominal_s: float) -> float:
+    """The default diagnosis's time budget, seconds (counted in work, :mod:`.budget`): :data:`BUDGET_NOMINAL_FITS`
+    times the nominal fit's share ``nominal_s``, at least :data:`TIME_BUDGET_S`."""
+    return max(TIME_BUDGET_S, BUDGET_NOMINAL_FITS * nominal_s)
 
 
 def validation_room(fit0: float, floor_points: float) -> float:

@@ -34,6 +34,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 from scipy.optimize import least_squares
 
+from ..solver import work
+from . import deadline
 from .parameters import clip_inside
 from .rules import (HELD_BROAD, HELD_UNTIL, PREDICTION_ERROR_EVALUATIONS,
                     PREDICTION_ERROR_TOLERANCE, PRESSURE_FACTOR, PROCESS_SCHEDULE, SAME_PREFIT)
@@ -208,20 +210,21 @@ class _SideBySide:
 
     def submit(self, fit, *args, **hooks):
         cancelled = threading.Event()
+        ledger = work.branch()   # a cancelled run's work counts nowhere: the count is its callers' logic's
 
         def run():
             if cancelled.is_set():
                 return None
             sim = self._free.get()
             try:
-                return fit(*args, sim=sim, cancelled=cancelled, **hooks)
+                return deadline.run_on_branch(ledger, fit, *args, sim=sim, cancelled=cancelled, **hooks)
             finally:
                 self._free.put(sim)
 
         if self._pool is None:
             handle = _Deferred(lambda: fit(*args, **hooks))
         else:
-            handle = self._pool.submit(run)
+            handle = _Taken(self._pool.submit(run), ledger)
         self._runs.append((handle, cancelled))
         return handle
 
@@ -234,6 +237,21 @@ class _SideBySide:
         if self._pool is not None:
             self._pool.shutdown(wait=True)
         return False
+
+
+class _Taken:
+    """A run on another thread whose work counts where its result is taken (:func:`.deadline.take`)."""
+
+    def __init__(self, future, ledger):
+        self._future, self._ledger, self._taken = future, ledger, False
+
+    def result(self):
+        try:
+            return self._future.result()
+        finally:
+            if not self._taken:
+                self._taken = True
+                deadline.take(self._ledger)
 
 
 class _Deferred:

@@ -32,6 +32,7 @@ from scipy.special import ndtr
 from ..errors import SolverError
 from ..model import ActuatorModel
 from ..solver.backends import state_scales
+from ..solver import work as model_work
 from ..solver.sensitivity import SensitivitySimulator, command_schedule
 from . import deadline
 
@@ -272,9 +273,11 @@ class ShootingProblem:
         ``work`` must use only the simulator it is given."""
         items = list(items)
         k = len(self.sims)
+        ledger = model_work.current()   # every part finishes: the caller's count, whichever thread integrates
 
         def share(worker):
-            return [work(self.sims[worker], item) for item in items[worker::k]]
+            with model_work.on(ledger):
+                return [work(self.sims[worker], item) for item in items[worker::k]]
 
         parts = [share(0)] if self._pool is None else list(self._pool.map(share, range(k)))
         out = [None] * len(items)
@@ -290,7 +293,7 @@ class ShootingProblem:
             sim.set_params(p)
 
         def work(sim, j):
-            deadline.check()   # a long evaluation stops between its segments too
+            deadline.check(backstop_only=True)   # a long evaluation stops between its segments too
             n_out = self.stops[j] - self.starts[j] + 1
             try:
                 return sim.run(self.data.time_s[self.starts[j]], starts[j], self.schedules[j], n_out, sensitivities)

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..errors import SolverError
 from ..model import ActuatorModel
+from . import work
 from .backends import state_scales
 from .codegen import compile_functions
 
@@ -157,6 +158,7 @@ class SensitivitySimulator:
         (else ``None``).
         """
         t_stop, u, out_index = schedule
+        work.charge((n_out - 1) * (1 + self.ns if sensitivities else 1))   # the same on every machine (.work)
         x_out = np.full((n_out, self.n), np.nan)
         x_out[0] = x0
         s_out = np.zeros((n_out if sensitivities else 1, self.n, self.ns))
@@ -178,6 +180,7 @@ class SensitivitySimulator:
         Why: the tracking filter takes one sample at a time, thousands per pass; :meth:`run`'s fresh arrays
         cost as much as the sample's integration."""
         t_stop, u, out_index = schedule
+        work.charge(1 + self.ns)
         flag, t_reached, message = self._integrator.run(float(t0), x0, self._s0, t_stop, u, out_index, x_out, s_out,
                                                         True)
         if flag < 0:

@@ -252,32 +252,41 @@ def test_the_time_budget_refuses_a_fit_that_would_end_past_it_and_the_diagnosis_
 def test_a_fit_that_runs_to_the_end_of_the_budget_is_stopped_and_its_result_not_used():
     """A fit that started within the budget but runs on is stopped at the budget's end by the deadline its
     evaluations check; whatever it returns after catching that (a half-way fit) is not used: the step raises
-    TimeBudgetExhausted and the status says it was stopped.  Outside a budget, the check does nothing."""
+    TimeBudgetExhausted and the status says it was stopped.  The budget is counted in model work, so where it
+    stops is exact: the evaluations that began within it, on any machine.  A fit whose work the count misses is
+    stopped by the processor-time backstop, and the status says so.  Outside a budget, the check does nothing."""
     import time
 
     from pneusim.diagnosis.budget import Budget, TimeBudgetExhausted, gated_stages
     from pneusim.diagnosis.estimator import DiagnosisStages
+    from pneusim.diagnosis.rules import WORK_UNITS_PER_S
     from pneusim.fit import deadline
+    from pneusim.solver import work
+
+    def long_refit(units_each):
+        def refit(*args, **kwargs):
+            try:
+                while True:                          # a fit's evaluations, each checking the deadline
+                    deadline.check()
+                    evaluations.append(work.done())
+                    work.charge(units_each)
+            except deadline.FitDeadlineExceeded:
+                return "a fit stopped half-way"      # a route that catches the stop and returns what it has
+        return refit
 
     evaluations = []
-
-    def long_refit(*args, **kwargs):
-        try:
-            while True:                          # a fit's evaluations, each checking the deadline
-                began = time.process_time()      # read before the check: one read after it can land past the end
-                deadline.check()
-                evaluations.append(began)
-                sum(i * i for i in range(2000))
-        except deadline.FitDeadlineExceeded:
-            return "a fit stopped half-way"      # a route that catches the stop and returns what it has
-
-    budget = Budget(1000.0)
-    budget.seconds = budget.used() + 0.3
-    gated = gated_stages(DiagnosisStages(refit=long_refit), budget, fit_cost_s=0.0)
-    with pytest.raises(TimeBudgetExhausted, match="ran to the end of the 0 s time budget"):
+    budget = Budget(10.5 * 1000 / WORK_UNITS_PER_S)
+    gated = gated_stages(DiagnosisStages(refit=long_refit(1000)), budget, fit_cost_s=0.0)
+    with pytest.raises(TimeBudgetExhausted, match="ran to the end of the 0 s time budget and was stopped$"):
         gated.refit()
-    assert evaluations and evaluations[-1] <= budget.started + budget.seconds   # none began past the end
+    assert len(evaluations) == 11 and evaluations[0] == budget.started   # the 11th began at 10 of 10.5 units
     assert budget.status.startswith("stopped by the time budget: the refit ran to the end")
+    evaluations.clear()
+    budget = Budget(0.05)                            # backstop: 4 x 0.05 s of processor time, no work counted
+    gated = gated_stages(DiagnosisStages(refit=long_refit(0)), budget, fit_cost_s=0.0)
+    with pytest.raises(TimeBudgetExhausted, match="stopped .by its processor-time backstop.$"):
+        gated.refit()
+    assert evaluations and time.process_time() - budget.cpu_started >= 0.2
     deadline.check()                              # no deadline set: nothing happens
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from pneusim.fit import prediction_error
-from pneusim.fit.deadline import FitDeadlineExceeded, cpu_deadline
+from pneusim.fit.deadline import FitDeadlineExceeded, work_deadline
 from pneusim.fit.initial import initial_starts
 from pneusim.fit.prediction_error import prediction_error_attempts
 from pneusim.fit.rescue_routes import nearby_start
@@ -153,21 +153,35 @@ def test_prediction_error_attempts_side_by_side_are_the_same_doubles_as_one_afte
 
 @pytest.mark.slow
 def test_prediction_error_attempts_side_by_side_stop_at_a_deadline_and_leave_no_thread():
-    """A caller's processor-time deadline that passes halfway through the route (the starts then run side by
-    side: the first start's first stage is a tenth of it) ends it with :class:`FitDeadlineExceeded` well before
-    the route's own end, and every thread the route started has ended by then: nothing integrates on the problem
-    after the call returns."""
+    """A caller's work deadline that passes halfway through the route (the starts then run side by side: the
+    first start's first stage is a tenth of it) ends it with :class:`FitDeadlineExceeded` before the route's
+    own end, and every thread the route started has ended by then: nothing integrates on the problem after the
+    call returns.  The work counted is the route's logic's, not its threads' timing: twice the same count, whole
+    or stopped, though the runs the route drops are cancelled at whatever sample their thread has reached."""
+    from pneusim.solver import work
+
     pb, setup, first, starts = _chaotic_window(5)
     threads_before = threading.active_count()
-    try:
-        started = time.process_time()
-        prediction_error_attempts(pb, starts, first, setup.lower, setup.upper)
-        whole_s = time.process_time() - started
-        started = time.process_time()
-        with pytest.raises(FitDeadlineExceeded), cpu_deadline(started + 0.5 * whole_s):
+
+    def counted(at=None):
+        units, cpu = work.done(), time.process_time()
+        if at is None:
             prediction_error_attempts(pb, starts, first, setup.lower, setup.upper)
-        stopped_s = time.process_time() - started
+        else:
+            with pytest.raises(FitDeadlineExceeded), work_deadline(units + at) as block:
+                prediction_error_attempts(pb, starts, first, setup.lower, setup.upper)
+            assert block.reached
+        return work.done() - units, time.process_time() - cpu
+
+    try:
+        whole, whole_s = counted()
+        assert counted()[0] == whole
+        stopped, stopped_s = counted(at=0.5 * whole)
+        assert counted(at=0.5 * whole)[0] == stopped
         assert threading.active_count() == threads_before
     finally:
         pb.close()
-    assert stopped_s < 0.8 * whole_s, (stopped_s, whole_s)
+    # a run beside another sees only its own work and the count at its start (what its partner has done is
+    # counted when taken), so the route stops past the deadline by up to its partner's work, before its end
+    assert 0.5 * whole < stopped < whole, (stopped, whole)
+    assert stopped_s < whole_s, (stopped_s, whole_s)

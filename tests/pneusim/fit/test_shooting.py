@@ -154,25 +154,35 @@ def test_screening_cost_is_the_trust_regions_objective(window):
 
 def test_a_filter_pass_stops_at_its_next_sample_once_a_callers_deadline_has_passed(window, monkeypatch):
     """A filter pass integrates one sample at a time, and where the model is stiff at the point tried one pass can
-    take minutes: under a caller's processor-time deadline (:func:`pneusim.fit.deadline.cpu_deadline`) it checks
-    before every sample and stops there, raising :class:`~pneusim.fit.deadline.FitDeadlineExceeded`; without one
-    it runs every sample.  The processor clock here is a counter, one tick a look."""
+    take minutes: under a caller's work deadline (:func:`pneusim.fit.deadline.work_deadline`) it checks before
+    every sample and stops there, raising :class:`~pneusim.fit.deadline.FitDeadlineExceeded`; without one it runs
+    every sample.  Each sample charges ``1 + ns`` units (the state and its sensitivity columns), so the pass stops
+    after exactly the samples the deadline leaves room for, on any machine; the processor-time backstop stops it
+    too, with the work deadline far away."""
     from types import SimpleNamespace
 
     from pneusim.fit import deadline
     from pneusim.fit.tracking import process_std, run_filter
+    from pneusim.solver import work
 
     pb, _, v, _ = window
     theta, starts = pb.split(v)
     sim, steps = pb.sims[0], []
     step = sim.step_into
     monkeypatch.setattr(sim, "step_into", lambda *args: steps.append(1) or step(*args))
+    before = work.done()
     full = run_filter(pb, theta, starts[0], process_std(pb, 1e-3))
     assert full["ok"] and len(steps) == pb.data.n_samples - 1
-    ticks = iter(range(10 ** 6))
-    monkeypatch.setattr(deadline, "time", SimpleNamespace(process_time=lambda: float(next(ticks))))
+    assert work.done() - before == len(steps) * (1 + sim.ns)
     steps.clear()
-    with deadline.cpu_deadline(100.0) as block:
+    with deadline.work_deadline(work.done() + 50.5 * (1 + sim.ns)) as block:
         with pytest.raises(deadline.FitDeadlineExceeded):
             run_filter(pb, theta, starts[0], process_std(pb, 1e-3))
-    assert block.reached and 0 < len(steps) < 120
+    assert block.reached and not block.by_backstop and len(steps) == 51
+    ticks = iter(range(10 ** 6))   # the processor clock a counter, one tick a look
+    monkeypatch.setattr(deadline, "time", SimpleNamespace(process_time=lambda: float(next(ticks))))
+    steps.clear()
+    with deadline.work_deadline(work.done() + 1e12, cpu_at_s=100.0) as block:
+        with pytest.raises(deadline.FitDeadlineExceeded):
+            run_filter(pb, theta, starts[0], process_std(pb, 1e-3))
+    assert block.reached and block.by_backstop and 0 < len(steps) < 120

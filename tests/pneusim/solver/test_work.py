@@ -1,0 +1,71 @@
+"""The model-work count (:mod:`pneusim.solver.work`) and the deadlines on it (:mod:`pneusim.fit.deadline`): a
+sample integrated costs one unit a column, whichever thread integrates it; work on a branch counts where its
+result is taken, and a deadline met there reaches the caller only then."""
+
+import threading
+
+import numpy as np
+import pytest
+
+from pneusim.experiment import standard_experiment
+from pneusim.fit import DEFAULT_FREE, deadline
+from pneusim.model import ActuatorModel
+from pneusim.simulate import simulate
+from pneusim.solver import work
+from pneusim.solver.sensitivity import SensitivitySimulator, command_schedule
+
+
+def test_a_run_charges_one_unit_a_sample_and_column(rig2):
+    """``n_out - 1`` samples integrated: ``1 + ns`` units each with sensitivities, one without; the same count on
+    any thread, and charged to the ledger the thread works on."""
+    exp = standard_experiment(rig2, "multisine", 1.0, "closed", seed=4)
+    sim = simulate(rig2, exp, noise_scale=0.0)
+    model = ActuatorModel([])
+    params = model.param_vector(rig2)
+    scales = params[[model.param_names.index(n) for n in DEFAULT_FREE]].copy()
+    integrator = SensitivitySimulator(model, list(DEFAULT_FREE), params, scales, rig2.stroke_m)
+    t, u = sim.recording.time_s, sim.recording.valve_cmd_V
+    start, stop = 10, 60
+    schedule = command_schedule(t, u, start, stop)
+    n_out = stop - start + 1
+
+    def charged(sensitivities):
+        before = work.done()
+        integrator.run(t[start], sim.states[start], schedule, n_out, sensitivities)
+        return work.done() - before
+
+    assert integrator.ns == len(DEFAULT_FREE) + len(model.state_names)
+    assert charged(True) == (n_out - 1) * (1 + integrator.ns)
+    assert charged(False) == n_out - 1
+    ledger, before = work.branch(), work.done()
+    worker = threading.Thread(target=lambda: deadline.run_on_branch(
+        ledger, integrator.run, t[start], sim.states[start], schedule, n_out, True))
+    worker.start()
+    worker.join()
+    assert ledger.units == (n_out - 1) * (1 + integrator.ns) and work.done() == before   # not taken yet
+    deadline.take(ledger)
+    assert work.done() - before == ledger.units
+
+
+def test_work_on_a_branch_counts_and_stops_only_where_its_result_is_taken():
+    """A branch opens at its caller's count; a deadline its work meets stops it there without reaching the
+    caller's block, which learns of it, with the work, when the result is taken; a branch never taken adds
+    nothing and reaches nothing."""
+    def spin(units_each):
+        while True:
+            deadline.check()
+            work.charge(units_each)
+
+    start = work.done()
+    with deadline.work_deadline(start + 100) as block:
+        dropped, taken = work.branch(), work.branch()
+        for ledger in (dropped, taken):
+            with pytest.raises(deadline.FitDeadlineExceeded):
+                deadline.run_on_branch(ledger, spin, 7)
+            assert ledger.stopped and ledger.base == start and ledger.units == 7 * 15   # 14 * 7 <= 100 < 15 * 7
+        assert not block.reached and work.done() == start
+        deadline.take(taken)
+        assert block.reached and not block.by_backstop and work.done() == start + 105
+    with deadline.work_deadline(np.inf) as unreached:
+        deadline.check()
+    assert not unreached.reached
