@@ -9,13 +9,13 @@ calls: a refused or stopped step raises :class:`TimeBudgetExhausted`, a :class:`
 so every step reports it in its candidate's trial as it reports a failed fit, and goes on with what it has; the
 result's ``status`` says which step was refused or stopped.
 
-The budget is given in seconds and counted in model work (:mod:`pneusim.solver.work`: samples integrated, one
-unit a column), at :data:`.rules.WORK_UNITS_PER_S` units a second -- the rate of the reference machine, a 2-core
-Xeon VM, idle.  Which steps fit is then the same on every machine, idle or loaded, and so is the answer; a machine
-half as fast takes twice as long over it (a processor-time budget bought it half the search and another answer:
-``docs/decisions/0115``, ``0116``).  A processor-time backstop, :data:`.rules.BUDGET_BACKSTOP` times the budget,
-ends a search whose work the count misses (a model so stiff at a point tried that one sample takes seconds);
-the status says when it did.
+The budget is given in seconds and counted in model work (:mod:`pneusim.solver.work`: the integrator's steps,
+weighted by the states and columns each integrates), at :data:`.rules.WORK_UNITS_PER_S` units a second -- the
+rate of the reference machine, a 2-core Xeon VM.  Which steps fit is then the same on every machine, idle or
+loaded, and so is the answer; a machine half as fast takes twice as long over it (a processor-time budget bought
+it half the search and another answer: ``docs/decisions/0115``, ``0116``).  A processor-time backstop,
+:data:`.rules.BUDGET_BACKSTOP` times the budget, ends a search whose work the count misses; the status says when
+it did.
 """
 
 from __future__ import annotations

@@ -179,14 +179,16 @@ MAX_CLOSEST = 3
 #: unless told otherwise: it returns what it has, its status naming the step refused (five minutes of wall time on
 #: a busy two-core machine)
 TIME_BUDGET_S = 240.0
-#: (units of model work a second) the rate at which the budget's seconds are counted in model work (samples
-#: integrated, one unit a column, :mod:`pneusim.solver.work`): the diagnoses' work over their processor time on
-#: the reference machine (a 2-core Xeon VM, idle, one BLAS thread per process; 0.667e6 on two several-effects
-#: diagnoses the budget stopped, single fits 0.3e6 to 0.75e6), so that a budget there lasts about its seconds of
-#: processor time and, counted in work, buys the same search on every machine (decision record 0116)
-WORK_UNITS_PER_S = 0.65e6
-#: (times the budget, s of processor time) the backstop that ends a search whose work the count misses (a model so
-#: stiff at a point tried that one sample takes seconds): far above what a budget's work costs on any machine in use
+#: (units of model work a second) the rate at which the budget's seconds are counted in model work (the
+#: integrator's steps, weighted by the states and columns each integrates, :mod:`pneusim.solver.work`): the
+#: diagnoses' work over their processor time on the reference machine (a 2-core Xeon VM, two diagnoses at a time,
+#: one BLAS thread each: 29.9e6 to 38.8e6 on four several-effects diagnoses the budget stopped, single fits 29.8e6
+#: to 34.4e6), so that a budget there lasts about its seconds of processor time and, counted in work, buys the
+#: same search on every machine (decision record 0116)
+WORK_UNITS_PER_S = 35e6
+#: (times the budget, s of processor time) the backstop that ends a search whose work the count misses (the
+#: optimisers' own linear algebra, a machine far slower than the reference): far above what a budget's work costs
+#: on any machine in use
 BUDGET_BACKSTOP = 4.0
 #: (nominal fits) by default a diagnosis may cost this many times its nominal fit's share of the budget, and at least
 #: TIME_BUDGET_S: a recording whose every fit is slow gets the same number of fits as one whose fits are quick, and

@@ -9,14 +9,14 @@ outside to stop.  :func:`check` sits at the top of those evaluations (:meth:`.sh
 catches the error and another route starts, that one stops at its first evaluation too; the block's ``reached``
 tells the caller afterwards that what the fit returned (if anything) is not a finished fit.
 
-The deadline is on the model work done (:mod:`pneusim.solver.work`, units of one sample integrated for one
-column), not on a clock: where a fit stops is then the same on every machine, idle or loaded.  Work on a thread
-whose result may be dropped runs on a branch of the count (:func:`run_on_branch`); a deadline it meets there
-reaches its caller's blocks only when the caller takes that result (:func:`take`).
+The deadline is on the model work done (:mod:`pneusim.solver.work`: the integrator's steps, weighted by the
+states and columns each integrates), not on a clock: where a fit stops is then the same on every machine, idle
+or loaded.  Work on a thread whose result may be dropped runs on a branch of the count (:func:`run_on_branch`);
+a deadline it meets there reaches its caller's blocks only when the caller takes that result (:func:`take`).
 
-A block may also carry a processor-time backstop (``cpu_at_s``): a model so stiff at the point tried that a
-sample takes seconds does no more counted work for it, and the backstop still ends the fit; it depends on the
-machine and is meant to be met only there.  Without a block, :func:`check` costs a list lookup.
+A block may also carry a processor-time backstop (``cpu_at_s``) for work the count misses (the optimisers' own
+linear algebra, a machine far slower than any in use); it depends on the machine and is meant never to be met
+before the work deadline.  Without a block, :func:`check` costs a list lookup.
 """
 
 from __future__ import annotations

@@ -107,7 +107,7 @@ cdef extern from "cvodes/cvodes.h":
     int CVodeSetSensErrCon(void* mem, booleantype errconS)
     int CVodeSensToggleOff(void* mem) nogil
     int CVodeGetSens(void* mem, realtype* tret, N_Vector* yS) nogil
-    int CVodeGetNumSteps(void* mem, long* nsteps)
+    int CVodeGetNumSteps(void* mem, long* nsteps) nogil
     int CVodeGetNumRhsEvals(void* mem, long* nfevals)
     int CVodeGetSensNumRhsEvals(void* mem, long* nfSevals)
     int CVodeGetNumLinSolvSetups(void* mem, long* nlinsetups)
@@ -323,6 +323,8 @@ cdef class SensitivityIntegrator:
     cdef SUNMatrix A_aug
     cdef SUNLinearSolver LS_aug
     cdef readonly str corrector
+    #: CVODES steps taken by every run so far (the model work the fit's budget counts, :mod:`.work`)
+    cdef readonly long steps_taken
 
     def __cinit__(self):
         self.mem = NULL
@@ -492,6 +494,7 @@ cdef class SensitivityIntegrator:
         cdef long m = t_stop.shape[0]
         cdef long o
         cdef realtype t = t0, tret = t0
+        cdef long nst = 0, steps = 0
         cdef bint sens = sensitivities and ns > 0
         # with sensitivities, the augmented state [x; vec(S)] in its own CVODES memory, or CVODES's
         # staggered corrector; without, the state alone (the staggered memory, sensitivities off)
@@ -516,6 +519,9 @@ cdef class SensitivityIntegrator:
                     # parameters since the last run, changed the kept f_x)
                     self.pb.u = u[k]
                     self.pb.fx_valid = False
+                    if k > 0:   # the counters restart with the memory: keep the steps taken so far
+                        CVodeGetNumSteps(mem, &nst)
+                        steps += nst
                     flag = CVodeReInit(mem, t, y)
                     if flag < 0:
                         break
@@ -544,6 +550,9 @@ cdef class SensitivityIntegrator:
                     for j in range(ns if sens else 0):
                         for i in range(n):
                             s_out[o, i, j] = yp[n + j * n + i] if augmented else N_VGetArrayPointer(self.yS[j])[i]
+            CVodeGetNumSteps(mem, &nst)
+            steps += nst
+        self.steps_taken += steps
         message = self.pb.message.decode("utf-8", "replace") if self.pb.message[0] != 0 else ""
         return (flag if flag < 0 else 0), float(tret), message
 

@@ -158,15 +158,16 @@ class SensitivitySimulator:
         (else ``None``).
         """
         t_stop, u, out_index = schedule
-        work.charge((n_out - 1) * (1 + self.ns if sensitivities else 1))   # the same on every machine (.work)
         x_out = np.full((n_out, self.n), np.nan)
         x_out[0] = x0
         s_out = np.zeros((n_out if sensitivities else 1, self.n, self.ns))
         if sensitivities:
             s_out[0] = self._s0
+        steps = self._integrator.steps_taken
         flag, t_reached, message = self._integrator.run(
             float(t0), np.ascontiguousarray(x0, float), self._s0, t_stop, u, out_index,
             x_out, s_out, sensitivities)
+        work.charge_steps(self._integrator.steps_taken - steps, self.n, 1 + self.ns if sensitivities else 1)
         if flag < 0:
             raise SolverError(f"CVODES failed at t = {t_reached:.6f} s (flag {flag}"
                               + (f": {message.strip()}" if message else "") + ")")
@@ -180,9 +181,10 @@ class SensitivitySimulator:
         Why: the tracking filter takes one sample at a time, thousands per pass; :meth:`run`'s fresh arrays
         cost as much as the sample's integration."""
         t_stop, u, out_index = schedule
-        work.charge(1 + self.ns)
+        steps = self._integrator.steps_taken
         flag, t_reached, message = self._integrator.run(float(t0), x0, self._s0, t_stop, u, out_index, x_out, s_out,
                                                         True)
+        work.charge_steps(self._integrator.steps_taken - steps, self.n, 1 + self.ns)
         if flag < 0:
             raise SolverError(f"CVODES failed at t = {t_reached:.6f} s (flag {flag}"
                               + (f": {message.strip()}" if message else "") + ")")

@@ -156,9 +156,9 @@ def test_a_filter_pass_stops_at_its_next_sample_once_a_callers_deadline_has_pass
     """A filter pass integrates one sample at a time, and where the model is stiff at the point tried one pass can
     take minutes: under a caller's work deadline (:func:`pneusim.fit.deadline.work_deadline`) it checks before
     every sample and stops there, raising :class:`~pneusim.fit.deadline.FitDeadlineExceeded`; without one it runs
-    every sample.  Each sample charges ``1 + ns`` units (the state and its sensitivity columns), so the pass stops
-    after exactly the samples the deadline leaves room for, on any machine; the processor-time backstop stops it
-    too, with the work deadline far away."""
+    every sample.  Each sample charges its CVODES steps, the same steps in every pass from the same point, so the
+    pass stops after exactly the samples the deadline leaves room for, on any machine; the processor-time
+    backstop stops it too, with the work deadline far away."""
     from types import SimpleNamespace
 
     from pneusim.fit import deadline
@@ -169,16 +169,16 @@ def test_a_filter_pass_stops_at_its_next_sample_once_a_callers_deadline_has_pass
     theta, starts = pb.split(v)
     sim, steps = pb.sims[0], []
     step = sim.step_into
-    monkeypatch.setattr(sim, "step_into", lambda *args: steps.append(1) or step(*args))
-    before = work.done()
+    monkeypatch.setattr(sim, "step_into", lambda *args: steps.append(work.done()) or step(*args))
     full = run_filter(pb, theta, starts[0], process_std(pb, 1e-3))
     assert full["ok"] and len(steps) == pb.data.n_samples - 1
-    assert work.done() - before == len(steps) * (1 + sim.ns)
+    before_each = np.array(steps) - steps[0]                  # the units counted before each sample, from the pass's start
+    assert np.all(np.diff(before_each) > 0)
     steps.clear()
-    with deadline.work_deadline(work.done() + 50.5 * (1 + sim.ns)) as block:
+    with deadline.work_deadline(work.done() + before_each[50]) as block:
         with pytest.raises(deadline.FitDeadlineExceeded):
             run_filter(pb, theta, starts[0], process_std(pb, 1e-3))
-    assert block.reached and not block.by_backstop and len(steps) == 51
+    assert block.reached and not block.by_backstop and len(steps) == 51   # samples 0-50 began within it
     ticks = iter(range(10 ** 6))   # the processor clock a counter, one tick a look
     monkeypatch.setattr(deadline, "time", SimpleNamespace(process_time=lambda: float(next(ticks))))
     steps.clear()

@@ -1,6 +1,6 @@
 """The model-work count (:mod:`pneusim.solver.work`) and the deadlines on it (:mod:`pneusim.fit.deadline`): a
-sample integrated costs one unit a column, whichever thread integrates it; work on a branch counts where its
-result is taken, and a deadline met there reaches the caller only then."""
+run charges its CVODES steps, whichever thread integrates it; work on a branch counts where its result is taken,
+and a deadline met there reaches the caller only then."""
 
 import threading
 
@@ -15,9 +15,10 @@ from pneusim.solver import work
 from pneusim.solver.sensitivity import SensitivitySimulator, command_schedule
 
 
-def test_a_run_charges_one_unit_a_sample_and_column(rig2):
-    """``n_out - 1`` samples integrated: ``1 + ns`` units each with sensitivities, one without; the same count on
-    any thread, and charged to the ledger the thread works on."""
+def test_a_run_charges_its_cvodes_steps_whichever_thread_integrates_it(rig2):
+    """Every CVODES step a run takes is charged, :func:`~pneusim.solver.work.step_units` units a step (its fixed
+    share and one unit a state of each column: with sensitivities ``1 + ns`` columns, one without); the same run
+    takes the same steps and charges the same units on another thread, to the ledger that thread works on."""
     exp = standard_experiment(rig2, "multisine", 1.0, "closed", seed=4)
     sim = simulate(rig2, exp, noise_scale=0.0)
     model = ActuatorModel([])
@@ -27,24 +28,28 @@ def test_a_run_charges_one_unit_a_sample_and_column(rig2):
     t, u = sim.recording.time_s, sim.recording.valve_cmd_V
     start, stop = 10, 60
     schedule = command_schedule(t, u, start, stop)
-    n_out = stop - start + 1
+
+    def run(sensitivities=True):
+        return integrator.run(t[start], sim.states[start], schedule, stop - start + 1, sensitivities)
 
     def charged(sensitivities):
-        before = work.done()
-        integrator.run(t[start], sim.states[start], schedule, n_out, sensitivities)
-        return work.done() - before
+        before, steps = work.done(), integrator._integrator.steps_taken
+        run(sensitivities)
+        return work.done() - before, integrator._integrator.steps_taken - steps
 
-    assert integrator.ns == len(DEFAULT_FREE) + len(model.state_names)
-    assert charged(True) == (n_out - 1) * (1 + integrator.ns)
-    assert charged(False) == n_out - 1
+    n = len(model.state_names)
+    units, steps = charged(True)
+    assert steps > stop - start and units == steps * (work.STEP_UNITS + n * (1 + integrator.ns))
+    assert charged(True) == (units, steps)                       # the same run, the same steps
+    units_state, steps_state = charged(False)
+    assert units_state == steps_state * (work.STEP_UNITS + n) and units_state < units
     ledger, before = work.branch(), work.done()
-    worker = threading.Thread(target=lambda: deadline.run_on_branch(
-        ledger, integrator.run, t[start], sim.states[start], schedule, n_out, True))
+    worker = threading.Thread(target=lambda: deadline.run_on_branch(ledger, run))
     worker.start()
     worker.join()
-    assert ledger.units == (n_out - 1) * (1 + integrator.ns) and work.done() == before   # not taken yet
+    assert ledger.units == units and work.done() == before   # charged to the branch, not taken yet
     deadline.take(ledger)
-    assert work.done() - before == ledger.units
+    assert work.done() - before == units
 
 
 def test_work_on_a_branch_counts_and_stops_only_where_its_result_is_taken():
