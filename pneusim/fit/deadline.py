@@ -11,7 +11,7 @@ tells the caller afterwards that what the fit returned (if anything) is not a fi
 
 The deadline is on the model work done (:mod:`pneusim.solver.work`: the integrator's steps, weighted by the
 states and columns each integrates), not on a clock: where a fit stops is then the same on every machine, idle
-or loaded.  Work on a thread whose result may be dropped runs on a branch of the count (:func:`run_on_branch`);
+or loaded.  Work on a thread whose result may be dropped runs on a branch of the count (:func:`pneusim.solver.work.branch`);
 a deadline it meets there reaches its caller's blocks only when the caller takes that result (:func:`take`).
 
 A block may also carry a processor-time backstop (``cpu_at_s``) for work the count misses (the optimisers' own
@@ -28,7 +28,7 @@ import time
 from ..errors import FitError
 from ..solver import work
 
-__all__ = ["FitDeadlineExceeded", "work_deadline", "check", "checked", "run_on_branch", "take"]
+__all__ = ["FitDeadlineExceeded", "work_deadline", "check", "checked", "take"]
 
 
 class FitDeadlineExceeded(FitError):
@@ -71,14 +71,16 @@ def check(backstop_only: bool = False) -> None:
     share, where the count seen mid-way depends on their timing)."""
     if not _active or not (time.process_time() > _active[-1].cpu_at_s if backstop_only else _active[-1].passed()):
         return
-    if work.on_branch():                  # its caller learns of it when it takes the result (take)
-        work.current().stopped = True
-    else:
-        _mark_reached()
+    _note_stopped()
     raise FitDeadlineExceeded("the fit was stopped: the work deadline of its caller has passed")
 
 
-def _mark_reached() -> None:
+def _note_stopped() -> None:
+    """A deadline stopped the calling thread's work: on a branch, the branch records it (its caller learns of it
+    when it takes the result, :func:`take`); else every block it has passed is marked reached."""
+    if work.on_branch():
+        work.current().stopped = True
+        return
     for block in _active:
         if not block.reached and block.passed():
             block.reached = True
@@ -97,18 +99,9 @@ def checked(step):
     return step_checked
 
 
-def run_on_branch(ledger: work.Ledger, call, *args, **kwargs):
-    """``call(*args, **kwargs)`` on another thread, its work charged to ``ledger`` (a :func:`pneusim.solver.work.branch`
-    opened where the call was started); give the branch to :func:`take` where the result is taken."""
-    with work.on(ledger):
-        return call(*args, **kwargs)
-
-
 def take(ledger: work.Ledger) -> None:
     """The result of work on ``ledger`` is taken by the calling thread: its work counts there, and a deadline it
     met reaches the calling thread's blocks."""
     ledger.merge()
-    if ledger.stopped and work.on_branch():
-        work.current().stopped = True
-    elif ledger.stopped:
-        _mark_reached()
+    if ledger.stopped:
+        _note_stopped()

@@ -217,7 +217,8 @@ class _SideBySide:
                 return None
             sim = self._free.get()
             try:
-                return deadline.run_on_branch(ledger, fit, *args, sim=sim, cancelled=cancelled, **hooks)
+                with work.on(ledger):
+                    return fit(*args, sim=sim, cancelled=cancelled, **hooks)
             finally:
                 self._free.put(sim)
 

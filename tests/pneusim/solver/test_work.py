@@ -15,6 +15,12 @@ from pneusim.solver import work
 from pneusim.solver.sensitivity import SensitivitySimulator, command_schedule
 
 
+def _on(ledger, call, *args):
+    """``call(*args)`` with its work charged to ``ledger``, as a side-by-side run does."""
+    with work.on(ledger):
+        return call(*args)
+
+
 def test_a_run_charges_its_cvodes_steps_whichever_thread_integrates_it(rig2):
     """Every CVODES step a run takes is charged, :func:`~pneusim.solver.work.step_units` units a step (its fixed
     share and one unit a state of each column: with sensitivities ``1 + ns`` columns, one without); the same run
@@ -44,7 +50,7 @@ def test_a_run_charges_its_cvodes_steps_whichever_thread_integrates_it(rig2):
     units_state, steps_state = charged(False)
     assert units_state == steps_state * (work.STEP_UNITS + n) and units_state < units
     ledger, before = work.branch(), work.done()
-    worker = threading.Thread(target=lambda: deadline.run_on_branch(ledger, run))
+    worker = threading.Thread(target=lambda: _on(ledger, run))
     worker.start()
     worker.join()
     assert ledger.units == units and work.done() == before   # charged to the branch, not taken yet
@@ -66,7 +72,7 @@ def test_work_on_a_branch_counts_and_stops_only_where_its_result_is_taken():
         dropped, taken = work.branch(), work.branch()
         for ledger in (dropped, taken):
             with pytest.raises(deadline.FitDeadlineExceeded):
-                deadline.run_on_branch(ledger, spin, 7)
+                _on(ledger, spin, 7)
             assert ledger.stopped and ledger.base == start and ledger.units == 7 * 15   # 14 * 7 <= 100 < 15 * 7
         assert not block.reached and work.done() == start
         deadline.take(taken)
