@@ -20,7 +20,7 @@ from pneusim.fit.initial import initial_starts
 from pneusim.fit.robustness import fit_free, make_case, robustness_cases
 from pneusim.fit.setup import FitSetup
 from pneusim.fit.shooting import expected_position_reading
-from pneusim.fit.rules import PRESSURE_FACTOR, PROCESS_SCHEDULE
+from pneusim.fit.rules import UNMEASURED_FACTOR, PROCESS_SCHEDULE
 from pneusim.fit.tracking import first_state_std, process_std, run_filter
 from pneusim.solver.sensitivity import command_schedule
 from results_file import write_results
@@ -86,7 +86,7 @@ def _window(seed):
     pb, _, _ = setup.problem(2000, 1e-6, 1)
     theta = np.array([truth[name] for name in setup.free]) / setup.scales
     first = initial_starts(pb, theta, recording, 2000)[0]
-    return pb, theta, first, process_std(pb, PROCESS_SCHEDULE[-1], PRESSURE_FACTOR)   # the last stage's
+    return pb, theta, first, process_std(pb, PROCESS_SCHEDULE[-1], UNMEASURED_FACTOR)   # the last stage's
 
 
 @pytest.fixture(scope="module", autouse=True)

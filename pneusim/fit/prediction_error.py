@@ -13,9 +13,11 @@ depends on the integrator's rounding (``docs/decisions/0018``).
 
 The process noise is what smooths the landscape and what lets the filter absorb a wrong model: the fit
 lowers it in turn (:data:`~.rules.PROCESS_SCHEDULE`), each stage from the last one's point, a homotopy from
-a broad basin to the sharp minimum.  Chamber pressures that the recording does not measure get a fraction
-of the others' process noise (:data:`~.rules.PRESSURE_FACTOR`): a filter free to move them explains a wrong
-valve and friction by them.  Measured pressures keep theirs: the measurements hold them, and a filter
+a broad basin to the sharp minimum.  The states the recording does not measure beyond the piston's motion
+(chamber pressures where it does not, an effect's own states: temperatures, spool, supply line) get a fraction
+of the others' process noise (:data:`~.rules.UNMEASURED_FACTOR`): a filter free to move them explains a wrong
+valve and friction by them, and an effect's states moved sample by sample stiffen the integration (a filter
+pass over a heat-transfer model that lacked physics took minutes where it takes seconds held).  Measured pressures keep theirs: the measurements hold them, and a filter
 that cannot follow them loses track of the piston at the data sheet's values.  The friction smoothing
 velocity is held in the broad stages (:data:`~.rules.HELD_BROAD`): a broad filter trades it for mistimed
 slips.
@@ -38,11 +40,11 @@ from ..solver import work
 from . import deadline
 from .parameters import clip_inside
 from .rules import (HELD_BROAD, HELD_UNTIL, PREDICTION_ERROR_EVALUATIONS,
-                    PREDICTION_ERROR_TOLERANCE, PRESSURE_FACTOR, PROCESS_SCHEDULE, SAME_PREFIT)
+                    PREDICTION_ERROR_TOLERANCE, UNMEASURED_FACTOR, PROCESS_SCHEDULE, SAME_PREFIT)
 from .shooting import ShootingProblem
 from .tracking import process_std, run_filter
 
-__all__ = ["prediction_error_fit", "prediction_error_attempts", "PROCESS_SCHEDULE", "PRESSURE_FACTOR"]
+__all__ = ["prediction_error_fit", "prediction_error_attempts", "PROCESS_SCHEDULE", "UNMEASURED_FACTOR"]
 
 
 def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.ndarray, lower: np.ndarray,
@@ -80,7 +82,7 @@ def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.nd
             after_first_stage(stage["rms_innovations"])
 
     for fraction in schedule:
-        process = process_std(pb, fraction, PRESSURE_FACTOR)
+        process = process_std(pb, fraction, UNMEASURED_FACTOR)
         cache = {}
 
         def evaluate(v):

@@ -28,7 +28,7 @@ __all__ = [
     "GIVE_UP_CLIMB", "GIVE_UP_STALL", "SETTLED_STEP", "SETTLED_STEPS", "SETTLED_SCATTER_STEPS", "OPENED_DEFECTS",
     "CONTRACTION",
     "TRACKED_ROUNDS", "TRACKED_STARTS", "PLAUSIBLE_INNOVATIONS", "PROCESS_STD", "FIRST_STATE_STD", "PROCESS_SCHEDULE",
-    "PRESSURE_FACTOR", "HELD_BROAD", "HELD_UNTIL", "PREDICTION_ERROR_EVALUATIONS", "PREDICTION_ERROR_TOLERANCE",
+    "UNMEASURED_FACTOR", "HELD_BROAD", "HELD_UNTIL", "PREDICTION_ERROR_EVALUATIONS", "PREDICTION_ERROR_TOLERANCE",
     "NEARBY_START", "PREDICTION_ERROR_ATTEMPTS", "SETTLED_NOISE",
 ]
 
@@ -219,9 +219,11 @@ FIRST_STATE_STD = {"velocity_m_per_s": 0.02, "pressure_a_Pa": 2e4, "pressure_b_P
 #: process noise of the prediction-error fit's stages in turn (fraction of each state's typical magnitude):
 #: broad first, where the landscape is smooth, then sharp, a homotopy to the sharp minimum (0018)
 PROCESS_SCHEDULE = (1e-2, 3e-3, 1e-3, 3e-4)
-#: process noise of chamber pressures the recording does not measure, relative to the other states': a filter
-#: free to move them explains a wrong valve and friction by them (0018)
-PRESSURE_FACTOR = 0.01
+#: process noise of the states the recording does not measure (chamber pressures where it does not, every
+#: effect's own states), relative to the other states': a filter free to move them explains a wrong valve and
+#: friction by them (0018), and an effect's temperatures, spool or supply line moved by it stiffen the
+#: integration of every sample (0122)
+UNMEASURED_FACTOR = 0.01
 #: parameters held at their start in the prediction-error stages whose process noise is above
 #: :data:`HELD_UNTIL`: a broad filter trades the friction smoothing velocity for mistimed slips (0018)
 HELD_BROAD = ("friction_smoothing_velocity_m_per_s",)

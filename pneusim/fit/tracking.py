@@ -49,18 +49,19 @@ def filtered_states(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray)
     return run_filter(pb, theta, x_first, process_std(pb))["states"]
 
 
-def process_std(pb: ShootingProblem, fraction: float = PROCESS_STD,
-                unmeasured_pressure_factor: float = 1.0) -> np.ndarray:
+def process_std(pb: ShootingProblem, fraction: float = PROCESS_STD, unmeasured_factor: float = 1.0) -> np.ndarray:
     """Process noise std per sample and state (SI): ``fraction`` of each state's typical magnitude, the
-    position's 1e-3 of that (the model integrates it from the velocity), and the chamber pressures'
-    ``unmeasured_pressure_factor`` of that where the window does not measure them."""
+    position's 1e-3 of that (the model integrates it from the velocity), and ``unmeasured_factor`` of that for the
+    states no recording measures beyond the piston's motion: the chamber pressures where the window does not
+    measure them, and every effect's own states (chamber temperatures, the spool, the supply line)."""
     scales = state_scales(pb.model, pb.stroke_m)
     out = fraction * scales
     out[pb.position_index] *= 1e-3
     measured = {name for (_, name, _, _, _) in pb.outputs}
+    effect_states = {name for effect in pb.model.effects for name in effect.states}
     for i, name in enumerate(pb.model.state_names):
-        if name in ("pressure_a_Pa", "pressure_b_Pa") and name not in measured:
-            out[i] *= unmeasured_pressure_factor
+        if (name in ("pressure_a_Pa", "pressure_b_Pa") and name not in measured) or name in effect_states:
+            out[i] *= unmeasured_factor
     return out
 
 

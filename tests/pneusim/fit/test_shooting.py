@@ -186,3 +186,29 @@ def test_a_filter_pass_stops_at_its_next_sample_once_a_callers_deadline_has_pass
         with pytest.raises(deadline.FitDeadlineExceeded):
             run_filter(pb, theta, starts[0], process_std(pb, 1e-3))
     assert block.reached and block.by_backstop and 0 < len(steps) < 120
+
+
+def test_the_filter_holds_the_states_a_recording_does_not_measure(window, rig2):
+    """The prediction-error fit's process noise: every state at its fraction of the state's typical magnitude (the
+    position at 1e-3 of that), and the states the recording does not measure beyond the piston's motion at
+    ``unmeasured_factor`` of it: chamber pressures where the window does not measure them, and an effect's own
+    states (here the chamber temperatures of heat transfer) always, measured pressures or not."""
+    from pneusim.fit.tracking import process_std
+    from pneusim.model import make_effect
+    from pneusim.solver.backends import state_scales
+
+    _, _, _, data = window
+    position_only = FitData(data.time_s, data.command_V, data.command_before_V, {"position_m": data.signals["position_m"]})
+    for signals, unmeasured in ((data, set()), (position_only, {"pressure_a_Pa", "pressure_b_Pa"})):
+        model = ActuatorModel([make_effect("heat_transfer")])
+        params = model.param_vector(rig2)
+        scales = params[[model.param_names.index(k) for k in DEFAULT_FREE]].copy()
+        pb = ShootingProblem(model, params, DEFAULT_FREE, scales, signals, rig2.stroke_m, 40, threads=1)
+        try:
+            held = process_std(pb, 1e-2, 0.01) / (1e-2 * state_scales(model, rig2.stroke_m))
+        finally:
+            pb.close()
+        expected = {"position_m": 1e-3, "velocity_m_per_s": 1.0, "pressure_a_Pa": 1.0, "pressure_b_Pa": 1.0,
+                    "temperature_a_K": 0.01, "temperature_b_K": 0.01}
+        expected.update({name: 0.01 for name in unmeasured})
+        assert dict(zip(model.state_names, held)) == pytest.approx(expected)
