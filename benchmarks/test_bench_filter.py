@@ -20,7 +20,7 @@ from pneusim.fit.initial import initial_starts
 from pneusim.fit.robustness import fit_free, make_case, robustness_cases
 from pneusim.fit.setup import FitSetup
 from pneusim.fit.shooting import expected_position_reading
-from pneusim.fit.rules import UNMEASURED_FACTOR, PROCESS_SCHEDULE
+from pneusim.fit.rules import PROCESS_SCHEDULE, UNMEASURED_FACTOR
 from pneusim.fit.tracking import first_state_std, process_std, run_filter
 from pneusim.solver.sensitivity import command_schedule
 from results_file import write_results

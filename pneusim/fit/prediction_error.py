@@ -17,8 +17,9 @@ a broad basin to the sharp minimum.  The states the recording does not measure b
 (chamber pressures where it does not, an effect's own states: temperatures, spool, supply line) get a fraction
 of the others' process noise (:data:`~.rules.UNMEASURED_FACTOR`): a filter free to move them explains a wrong
 valve and friction by them, and an effect's states moved sample by sample stiffen the integration (a filter
-pass over a heat-transfer model that lacked physics took minutes where it takes seconds held).  Measured pressures keep theirs: the measurements hold them, and a filter
-that cannot follow them loses track of the piston at the data sheet's values.  The friction smoothing
+pass over a heat-transfer model that lacked physics took minutes where it takes seconds held).  Measured
+pressures keep theirs: the measurements hold them, and a filter that cannot follow them loses track of the
+piston at the data sheet's values.  The friction smoothing
 velocity is held in the broad stages (:data:`~.rules.HELD_BROAD`): a broad filter trades it for mistimed
 slips.
 
@@ -40,7 +41,7 @@ from ..solver import work
 from . import deadline
 from .parameters import clip_inside
 from .rules import (HELD_BROAD, HELD_UNTIL, PREDICTION_ERROR_EVALUATIONS,
-                    PREDICTION_ERROR_TOLERANCE, UNMEASURED_FACTOR, PROCESS_SCHEDULE, SAME_PREFIT)
+                    PREDICTION_ERROR_TOLERANCE, PROCESS_SCHEDULE, SAME_PREFIT, UNMEASURED_FACTOR)
 from .shooting import ShootingProblem
 from .tracking import process_std, run_filter
 

@@ -198,7 +198,8 @@ def test_the_filter_holds_the_states_a_recording_does_not_measure(window, rig2):
     from pneusim.solver.backends import state_scales
 
     _, _, _, data = window
-    position_only = FitData(data.time_s, data.command_V, data.command_before_V, {"position_m": data.signals["position_m"]})
+    position_only = FitData(data.time_s, data.command_V, data.command_before_V,
+                            {"position_m": data.signals["position_m"]})
     for signals, unmeasured in ((data, set()), (position_only, {"pressure_a_Pa", "pressure_b_Pa"})):
         model = ActuatorModel([make_effect("heat_transfer")])
         params = model.param_vector(rig2)
