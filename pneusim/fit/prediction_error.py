@@ -91,7 +91,7 @@ def prediction_error_fit(pb: ShootingProblem, theta0: np.ndarray, x_first: np.nd
             if key not in cache:
                 cache.clear()
                 run = run_filter(pb, v[:nf], v[nf:] * pb.x_scale, process, gradients=True, sim=sim,
-                                 cancelled=cancelled)
+                                 cancelled=cancelled, stop_at_failure=True)
                 if not run["ok"]:
                     # a point the model cannot be integrated at: no finite cost, the trust region shrinks
                     run["innovations"] = np.full_like(run["innovations"], np.inf)

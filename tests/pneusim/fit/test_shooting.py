@@ -188,6 +188,38 @@ def test_a_filter_pass_stops_at_its_next_sample_once_a_callers_deadline_has_pass
     assert block.reached and block.by_backstop and 0 < len(steps) < 120
 
 
+def test_a_filter_pass_that_must_stop_at_a_failed_sample_takes_no_sample_after_it(window, monkeypatch):
+    """A trial point the model cannot be integrated at fails at every sample from there on, each failure after the
+    integrator's whole step allowance.  The prediction-error fit discards a pass with a failed sample, so its passes
+    stop there (``stop_at_failure``): not ok, and not one more sample integrated, whether the integrator raised or
+    left a non-finite state.  Without it the pass goes on to the end (a failed sample's prediction keeps the state
+    as it was, the measurements still update it), and its states before the failure are the same."""
+    from pneusim.errors import SolverError
+    from pneusim.fit.tracking import process_std, run_filter
+
+    pb, _, v, _ = window
+    theta, starts = pb.split(v)
+    sim, calls = pb.sims[0], []
+    step = sim.step_into
+    for failing in ("raises", "nan"):
+        def failing_from_sample_20(t0, x, schedule, x_out, s_out):
+            calls.append(t0)
+            if len(calls) < 20:
+                return step(t0, x, schedule, x_out, s_out)
+            if failing == "raises":
+                raise SolverError("too much work")
+            x_out[1] = np.nan
+        monkeypatch.setattr(sim, "step_into", failing_from_sample_20)
+        calls.clear()
+        stopped = run_filter(pb, theta, starts[0], process_std(pb, 1e-3), gradients=True, stop_at_failure=True)
+        assert not stopped["ok"] and len(calls) == 20
+        calls.clear()
+        whole = run_filter(pb, theta, starts[0], process_std(pb, 1e-3), gradients=True)
+        assert not whole["ok"] and len(calls) == pb.data.n_samples - 1
+        np.testing.assert_array_equal(stopped["states"][:20], whole["states"][:20])
+        assert np.all(np.isfinite(whole["states"][20:]))   # the measurements alone move it on
+
+
 def test_the_filter_holds_the_states_a_recording_does_not_measure(window, rig2):
     """The prediction-error fit's process noise: every state at its fraction of the state's typical magnitude (the
     position at 1e-3 of that), and the states the recording does not measure beyond the piston's motion at
