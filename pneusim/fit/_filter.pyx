@@ -57,7 +57,7 @@ def filter_pass(step, failure, const double[::1] time_s, list schedules, double[
                 const double[::1] x_lo, const double[::1] x_hi, const long[::1] at, const double[:, ::1] values,
                 const double[::1] sigma, const unsigned char[:, ::1] seen, long position_index, double stroke_m,
                 int n_free, double[:, ::1] states, double[:, ::1] innovations, double[:, :, ::1] jacobian,
-                bint gradients):
+                bint gradients, bint stop_at_failure=False):
     """One pass of the filter over ``time_s.shape[0]`` samples; returns whether every step integrated.
 
     ``step(t0, x, schedule, x_buffer, s_buffer)`` integrates one sample from ``x`` (raising ``failure`` where it
@@ -67,7 +67,9 @@ def filter_pass(step, failure, const double[::1] time_s, list schedules, double[
     ``process_var``: the process noise variance per state.  ``at``, ``values`` (N, m),
     ``sigma``, ``seen`` (N, m): the measured states, their values, noise std and where they exist.  Writes the
     filtered states to ``states`` (N, n); with ``gradients`` the whitened innovations to ``innovations`` (N, m)
-    and their derivative to ``jacobian`` (N, m, n_free + n), zero where a value is missing.
+    and their derivative to ``jacobian`` (N, m, n_free + n), zero where a value is missing.  A sample that
+    cannot be integrated keeps the predicted state as it was; with ``stop_at_failure`` the pass ends there
+    instead, nothing written for that sample or after it.
     """
     cdef Py_ssize_t N = time_s.shape[0], n = x_first.shape[0], m = at.shape[0]
     cdef Py_ssize_t c = n_free + n
@@ -140,6 +142,8 @@ def filter_pass(step, failure, const double[::1] time_s, list schedules, double[
                             Z[i] = Zt[i]
                 else:
                     ok = False
+                    if stop_at_failure:
+                        break
             # the update, one measured value at a time, each linearised at the predicted state
             for i in range(n):
                 predicted[i] = x[i]

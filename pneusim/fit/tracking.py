@@ -23,8 +23,6 @@ their fixed-gain Jacobian.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..errors import SolverError
@@ -110,17 +108,12 @@ def run_filter(pb: ShootingProblem, theta: np.ndarray, x_first: np.ndarray, proc
     step = deadline.checked(sim.step_into)
     if cancelled is not None:
         step = _cancellable(step, cancelled)
-    if stop_at_failure:
-        step = _stopping_at_failure(step)
-    try:
-        ok = filter_pass(step, SolverError, np.ascontiguousarray(data.time_s, dtype=float),
-                         _sample_schedules(pb),
-                         np.ascontiguousarray(x_first, dtype=float), np.diag(first_state_std(pb) ** 2), Z0,
-                         np.asarray(process, float) ** 2, 1.0 / pb.x_scale, np.ascontiguousarray(x_lo, dtype=float),
-                         np.ascontiguousarray(x_hi, dtype=float), rows, values, sigma, seen, pb.position_index,
-                         pb.stroke_m, nf, states, innovations, jacobian, gradients)
-    except _StepFailed:
-        ok = False
+    ok = filter_pass(step, SolverError, np.ascontiguousarray(data.time_s, dtype=float),
+                     _sample_schedules(pb),
+                     np.ascontiguousarray(x_first, dtype=float), np.diag(first_state_std(pb) ** 2), Z0,
+                     np.asarray(process, float) ** 2, 1.0 / pb.x_scale, np.ascontiguousarray(x_lo, dtype=float),
+                     np.ascontiguousarray(x_hi, dtype=float), rows, values, sigma, seen, pb.position_index,
+                     pb.stroke_m, nf, states, innovations, jacobian, gradients, stop_at_failure)
     result = {"states": states, "ok": bool(ok)}
     if gradients:
         result["innovations"] = innovations.ravel()
@@ -139,23 +132,6 @@ def _cancellable(step, cancelled):
             raise FilterCancelled()
         return step(*args)
     return step_unless_cancelled
-
-
-class _StepFailed(Exception):
-    """A sample the integrator could not take, raised through the compiled pass (``stop_at_failure``)."""
-
-
-def _stopping_at_failure(step):
-    """``step`` that raises :class:`_StepFailed` where the integrator cannot take the sample: it raised
-    :class:`~pneusim.errors.SolverError` or left a non-finite state (the pass sets the buffer to NaN first)."""
-    def step_or_stop(t0, x, schedule, x_buffer, s_buffer):
-        try:
-            step(t0, x, schedule, x_buffer, s_buffer)
-        except SolverError as exc:
-            raise _StepFailed() from exc
-        if not math.isfinite(x_buffer[1].sum()):
-            raise _StepFailed()
-    return step_or_stop
 
 
 def _sample_schedules(pb: ShootingProblem) -> list:
