@@ -13,8 +13,8 @@ from ..errors import FitError
 from ..model import Effect
 from ..recording import Recording
 from ..rig import Rig
-from .rules import (DEFAULT_VALIDATION_FRACTION, MIN_ESTIMATION_SAMPLES, PREFIT_SAMPLES, SEGMENT_SAMPLES,
-                    TRUST_REGION_EVALUATIONS)
+from .rules import (DEFAULT_VALIDATION_FRACTION, MIN_ESTIMATION_SAMPLES, PREFIT_DEFECT_WEIGHTS, PREFIT_SAMPLES,
+                    SEGMENT_SAMPLES, TRUST_REGION_EVALUATIONS)
 from .setup import FitSetup, _name
 from .initial import initial_starts
 from .stages import prefit
@@ -34,6 +34,9 @@ class PrefitResult:
     n_residuals : int
     normalised_residual : float
         ``sqrt(cost / n_residuals)`` (1 is the noise level).
+    defect_cost : float
+        The continuity defects the pre-fit left open, squared and weighted as its objective weighs them
+        (the last of :data:`~.rules.PREFIT_DEFECT_WEIGHTS`): ``cost + defect_cost`` is what it minimised.
     estimates : dict
         ``{parameter name: value}`` of the free parameters at the end (SI units).
     samples : int
@@ -47,6 +50,21 @@ class PrefitResult:
     estimates: dict
     samples: int
     seconds: float
+    defect_cost: float = 0.0
+
+    @property
+    def objective(self) -> float:
+        """What the pre-fit minimised at its end: the residual sum of squares plus the weighted defects.
+
+        Why it, not the residual alone, compares models: without recorded pressures each segment's pressures
+        (and an effect's own states) start free, and a pre-fit that ended with its segments apart bought part
+        of its residual with the jumps; an effect with states of its own has more of them to buy with."""
+        return self.cost + self.defect_cost
+
+    @property
+    def normalised_objective(self) -> float:
+        """``sqrt(objective / n_residuals)``: the objective's rms in noise units (1 is the noise level)."""
+        return float(np.sqrt(self.objective / max(self.n_residuals, 1)))
 
 
 @one_blas_thread
@@ -91,6 +109,7 @@ def prefit_recording(recording: Recording, rig: Rig | str | None = None, effects
         pb.close()
     cost = float(np.dot(e["r"], e["r"]))
     n_res = int(e["r"].size)
+    defects = PREFIT_DEFECT_WEIGHTS[-1] ** 2 * float(np.dot(e["g"], e["g"]))
     return PrefitResult(cost, n_res, float(np.sqrt(cost / max(n_res, 1))),
                         {name: float(p[i]) for name, i in zip(setup.free, setup.index)}, int(pb.data.n_samples),
-                        time.perf_counter() - started)
+                        time.perf_counter() - started, defects)
