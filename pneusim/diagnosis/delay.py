@@ -31,7 +31,7 @@ from .refits import effect_parameters, estimation_cost
 from .rules import (DELAY_GRID_PER_SAMPLE, DELAY_LAG_CORRELATION, DELAY_LAG_FACTORS, DELAY_SCAN_ERROR_RATIO,
                     MIN_DELAY_SAMPLES, SCAN_FACTOR, SCAN_REFITS, is_solver_failure)
 
-__all__ = ["DELAY", "screened_delays", "ScreenedDelays", "refine_from_screening", "delay_could_lead",
+__all__ = ["DELAY", "on_grid", "parabola_in_log", "scan_found_delay", "screened_delays", "ScreenedDelays", "refine_from_screening", "delay_could_lead",
            "scan_kept_delay", "scan_with_refits", "SCAN_FACTOR", "SCAN_REFITS"]
 
 #: the effect estimated by scans (its delay is ``searched``: no gradient)
@@ -72,14 +72,14 @@ class ScreenedDelays:
         variants[DELAY] = (score, c, dict(s, parameters={"delay_s": d_best}))
 
 
-def _on_grid(delay_s: float, sample_time_s: float) -> float:
+def on_grid(delay_s: float, sample_time_s: float) -> float:
     """A delay rounded to the grid (:data:`~.rules.DELAY_GRID_PER_SAMPLE`), at least
     :data:`~.rules.MIN_DELAY_SAMPLES`."""
     return float(max(MIN_DELAY_SAMPLES * sample_time_s,
                      round(delay_s / sample_time_s * DELAY_GRID_PER_SAMPLE) / DELAY_GRID_PER_SAMPLE * sample_time_s))
 
 
-def _parabola_in_log(delays, values, best: int) -> float | None:
+def parabola_in_log(delays, values, best: int) -> float | None:
     """The minimum (or maximum, for gains: pass ``-gain``) of a parabola through ``best`` and its two
     neighbours in ``log(delay)``; None without a neighbour on each side or without curvature."""
     if not 0 < best < len(delays) - 1:
@@ -104,8 +104,8 @@ def refine_from_screening(scan, sample_time_s: float) -> float:
         return float(d[0])
     g = np.where(np.isfinite(g), g, -np.inf)
     k = int(np.argmax(g))
-    best = _parabola_in_log(d, -g, k)
-    return _on_grid(d[k] if best is None else best, sample_time_s)
+    best = parabola_in_log(d, -g, k)
+    return on_grid(d[k] if best is None else best, sample_time_s)
 
 
 def delay_could_lead(kept: list, refits: dict) -> bool:
@@ -151,6 +151,24 @@ def scan_kept_delay(run) -> None:
     run.refits[DELAY] = (best, c_d)
 
 
+def scan_found_delay(run, final):
+    """Where a transport delay is among the effects of ``final`` (the findings' fit), estimate it by
+    :func:`scan_with_refits` with the other findings present; returns the fit of the lowest estimation residual
+    (``final`` itself where no other delay is lower), the delay's trial saying how the scan went.
+
+    Why: a delay found jointly comes from the window's pre-fits, a factor of 1.5 apart and a parabola between them;
+    the whole estimation part pins it to a tenth of a sample."""
+    if DELAY not in {e.name for e in final.effects_}:
+        return final
+    best, scan = scan_with_refits(run, final)
+    trial = run.trials.get(DELAY)
+    if trial is not None:
+        trial.seconds = (trial.seconds or 0.0) + sum(t for _, _, t in scan)
+        trial.status += ("; delay scan with refits, the other findings present (estimation residual by delay: "
+                         + ", ".join(f"{d * 1e3:.4g} ms {c:.0f}" for d, c, _ in scan) + ")")
+    return best
+
+
 class _Scan:
     """The refits of one delay scan, by delay on the grid: ``fits[delay] = (cost, fit or None, seconds)``."""
 
@@ -164,7 +182,7 @@ class _Scan:
 
     def at(self, delay_s: float) -> float:
         """Refit at ``delay_s`` (on the grid) unless done or out of budget; returns the delay on the grid."""
-        delay_s = _on_grid(delay_s, self.dt)
+        delay_s = on_grid(delay_s, self.dt)
         if delay_s in self.fits or self.budget <= 0:
             return delay_s
         self.budget -= 1
@@ -207,11 +225,11 @@ def scan_with_refits(run, kept_fit):
         if 0 < k < len(ds) - 1:
             break                                  # bracketed
         step = ds[k] * (SCAN_FACTOR if k == len(ds) - 1 else 1.0 / SCAN_FACTOR)
-        if _on_grid(step, s.dt) in s.fits:
+        if on_grid(step, s.dt) in s.fits:
             break                                  # at the grid's lower end
         s.at(step)
     ds, cs, k = s.costs()
-    vertex = _parabola_in_log(ds, cs, k)
+    vertex = parabola_in_log(ds, cs, k)
     if vertex is not None:
         s.at(vertex)
     # the residual's valley is sharper than a parabola over a factor of 1.5: halve the wider side of the
@@ -221,7 +239,7 @@ def scan_with_refits(run, kept_fit):
         if not 0 < k < len(ds) - 1:
             break
         below, above = ds[k] - ds[k - 1], ds[k + 1] - ds[k]
-        middle = _on_grid(0.5 * (ds[k] + (ds[k + 1] if above >= below else ds[k - 1])), s.dt)
+        middle = on_grid(0.5 * (ds[k] + (ds[k + 1] if above >= below else ds[k - 1])), s.dt)
         if middle in s.fits:
             break                                  # neighbours a grid step away
         s.at(middle)

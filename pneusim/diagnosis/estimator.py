@@ -12,7 +12,11 @@
    ends within :data:`~.rules.MODEL_SHORT` times the noise (:mod:`.around_nominal`); from the data sheet,
    every candidate pre-fitted on the window where the residual is largest, where it ends farther above
    (:mod:`.from_data_sheet`);
-5. **confirm** -- the leading candidates, one per look-alike family, then their look-alikes, fitted whole
+5. **jointly** (:mod:`.window_sets`) -- far above noise, where no candidate alone explains the screening's window:
+   the leading effects pre-fitted together there in pairs, the best pair fitted whole and kept against the nominal
+   model, then drop-one (8) and the search on top of it (7); where the best is a single effect or the pair fails,
+   the one-effect-first confirmation:
+   **confirm** -- the leading candidates, one per look-alike family, then their look-alikes, fitted whole
    (warm from the nominal fit, or from the data sheet) and kept only when they pass the keep test
    (:func:`.rules.passes_test`: an information criterion on the estimation part *and* a validation fit improved
    by more than noise explains);
@@ -62,21 +66,22 @@ from ..recording import Recording, read_recording
 from ..rig import Rig
 from .around_nominal import confirm_around_nominal, screen_around_nominal
 from .candidates import candidate_list, polished_costs, screen
-from .delay import scan_kept_delay, screened_delays
+from .delay import scan_found_delay, scan_kept_delay, screened_delays
 from .budget import Budget, gated_stages
-from .findings import add_findings, drop_one, more_findings
+from .findings import add_findings, drop_one, joint_finding, more_findings, rank_by_contribution, refreshed
 from .from_data_sheet import confirm_from_data_sheet, mismatch_window, one_start_each, screen_from_data_sheet
 from .locate import episodes, locate_mismatch, named_states
 from .other import above_noise, other_finding
 from .refits import estimation_cost, fit_from_data_sheet, fit_nominal, noise_levels, refit
 from .result import DiagnosisResult
-from .rules import (MAX_FINDINGS, MAX_FINDINGS_SEVERAL, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, MODEL_SHORT,
-                    SCREEN_SAMPLES, TIME_BUDGET_S, VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE,
+from .rules import (AT_NOISE_ON_WINDOW, MAX_FINDINGS, MAX_FINDINGS_SEVERAL, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, MODEL_SHORT,
+                    SCREEN_SAMPLES, SET_EXPLAINS_WINDOW, TIME_BUDGET_S, VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE,
                     VALIDATION_MOTION_NOISE, WINDOW_SAMPLES,
                     default_budget_s, keep_test_text, noise_floor_points, passes_test, screening_route,
                     validation_room)
 from .run import DiagnosisRun, NominalBaseline
 from .signatures import compute_signatures
+from .window_sets import fit_set, search_sets
 
 __all__ = ["Diagnosis", "DiagnosisStages"]
 
@@ -247,19 +252,26 @@ class Diagnosis:
         route, ranked, variants, measure = self._screen(run, candidates, signatures)         # 4. screen
         t_screen = time.perf_counter() - t_started
         run.on_top = _on_top(candidates, variants)
-        self._confirm(run, route, ranked, variants, measure)                                  # 5. confirm
-        stages.delay_scan(run)                                                                # 6. delay scan
-        t_first = time.perf_counter()
-        kept = run.kept_by_fit()
-        findings, final = stages.findings(run, kept) if kept else ([], nominal)               # 7. findings
-        several = self.several_effects
-        search = "several effects" if several else "one effect first"
-        if several is None and findings and above_noise(final, run.noise, run.baseline.floor):
-            findings, final, several = self._go_on(run, findings, final, name)
-            search = "one effect first, then several"
-        t_on_top = time.perf_counter()
-        if several:
-            findings, final = run.stages.drop_one(run, findings, final)                       # 8. drop-one
+        joint = self._joint(run, name) if route == "from the data sheet" else None           # 5. jointly, or
+        if joint is not None:
+            findings, final = joint
+            kept = [f.effect for f in findings]
+            t_first = t_on_top = time.perf_counter()
+            search = "several effects, found jointly"
+        else:
+            self._confirm(run, route, ranked, variants, measure)                              # 5. confirm
+            stages.delay_scan(run)                                                            # 6. delay scan
+            t_first = time.perf_counter()
+            kept = run.kept_by_fit()
+            findings, final = stages.findings(run, kept) if kept else ([], nominal)           # 7. findings
+            several = self.several_effects
+            search = "several effects" if several else "one effect first"
+            if several is None and findings and above_noise(final, run.noise, run.baseline.floor):
+                findings, final, several = self._go_on(run, findings, final, name)
+                search = "one effect first, then several"
+            t_on_top = time.perf_counter()
+            if several:
+                findings, final = run.stages.drop_one(run, findings, final)                   # 8. drop-one
         t_drop_one = time.perf_counter()
         duration_s = float(recording.time_s[-1] - recording.time_s[0])
         ended = _search_ended(budget, findings, kept, run.max_findings)
@@ -285,6 +297,7 @@ class Diagnosis:
                     "drop_one_s": t_drop_one - t_on_top,
                     "cpu_s": time.process_time() - cpu_started,    # this process's: both fit threads
                     "budget_s": budget.used()},                    # the work counted, in the budget's seconds
+            window_sets=[w.to_dict() for w in run.window_sets],
             nominal_fit=nominal, final_fit=final, signatures=signatures,
             fits={k: v[0] for k, v in run.refits.items()})
         self._say(name, f"findings {', '.join(result.effects) or 'none'}; final fit {final.fit_percent:.2f} % "
@@ -302,6 +315,57 @@ class Diagnosis:
                         f"(final fit {final.fit_percent:.2f} %): searching for more effects on top")
         findings, final = run.stages.more_findings(run, findings, final)
         return findings, final, len(findings) > n_before
+
+    def _joint(self, run: DiagnosisRun, name: str):
+        """5, where no effect alone explains the screening's window: sets of the window's leading effects pre-fitted
+        together there (:func:`.window_sets.search_sets`); where the best is a set of two or more, it is fitted
+        whole and kept against the nominal model (:func:`.window_sets.fit_set`), each member is tested with the
+        others present (8, drop-one), the findings ranked by what each adds with the others present, and the
+        search goes on on top of them where they leave the model above noise (7).  Returns ``(findings, final
+        fit)``, or None where the one-effect-first confirmation is to run instead (a single effect explains the
+        window, the best set is a single effect or leaves the window above :data:`~.rules.SET_EXPLAINS_WINDOW` times
+        noise, or its whole fit failed the keep test)."""
+        window = run.window
+        singles = [pre for _, pre in (window.singles.values() if window else ()) if pre is not None]
+        if not (window and window.shows_mismatch and singles
+                and min(pre.normalised_residual for pre in singles) > AT_NOISE_ON_WINDOW):
+            return None
+        max_effects = (run.max_findings if self.several_effects is False
+                       else max(run.max_findings, MAX_FINDINGS_SEVERAL))
+        self._say(name, "no effect alone explains the mismatch window: sets of the leading effects pre-fitted "
+                        "together there")
+        run.window_sets = search_sets(run, window.singles, window.options, max_effects)
+        best = run.window_sets[0] if run.window_sets else None
+        if best is None or len(best.candidates) < 2:
+            return None
+        if best.normalised_objective > SET_EXPLAINS_WINDOW:
+            best.outcome = (f"not fitted: leaves the window {best.normalised_objective:.3g} times noise, above "
+                            f"{SET_EXPLAINS_WINDOW:g}")
+            self._say(name, f"the best set, {best.label}, leaves the window {best.normalised_objective:.3g} times "
+                            f"noise (above {SET_EXPLAINS_WINDOW:g}): too little explained to choose the physics there")
+            return None
+        self._say(name, f"the set that explains the window best: {best.label} "
+                        f"({best.normalised_objective:.3g} times noise there)")
+        out = fit_set(run, best, window.base.normalised_objective)
+        if out is None or not out[2]:
+            return None
+        fit, _, _ = out
+        run.several_effects, run.max_findings = True, max_effects
+        for c in best.candidates:
+            run.trials[c.name].kept = True
+            run.refitted_on_top.add(c.label)
+        findings = [joint_finding(c.name, fit, run.baseline.fit0, run.trials[c.name]) for c in best.candidates]
+        findings, final = run.stages.drop_one(run, findings, fit)                             # 8. drop-one
+        final = scan_found_delay(run, final)                                                  # 6. a delay
+        findings = refreshed(findings, final)
+        if len(findings) < run.max_findings and above_noise(final, run.noise, run.baseline.floor):
+            n_before = len(findings)
+            self._say(name, f"{', '.join(f.effect for f in findings)} leave(s) the model above noise "
+                            f"(final fit {final.fit_percent:.2f} %): searching for more effects on top")
+            findings, final = run.stages.more_findings(run, findings, final)                  # 7. on top
+            if len(findings) > n_before:
+                findings, final = run.stages.drop_one(run, findings, final)
+        return rank_by_contribution(run, findings, final), final
 
     def _nominal_fit(self, recording, rig, name: str, budget: Budget):
         """1. The nominal fit (``stages.nominal_fit``); a recording it cannot start on, or whose nominal fit

@@ -10,12 +10,14 @@ import math
 import time
 
 from ..model.effects import EFFECTS
+from .candidates import family_of
 from .from_data_sheet import data_sheet_start
 from .refits import effect_at_screened, effect_parameters, estimation_cost
 from .result import CandidateTrial, Finding
 from .rules import MIN_EXPLAINED, MODEL_SHORT, ON_TOP_REFITS, bic_penalty, is_solver_failure
 
-__all__ = ["add_findings", "more_findings", "drop_one", "ON_TOP_REFITS"]
+__all__ = ["add_findings", "more_findings", "drop_one", "joint_finding", "rank_by_contribution", "refreshed",
+           "ON_TOP_REFITS"]
 
 
 def add_findings(run, kept: list) -> tuple[list, object]:
@@ -108,6 +110,7 @@ def _one_more(run, findings: list, final, pool: dict) -> tuple[bool, object]:
             if final is not previous:
                 base_top, scores = _screen_on_top(run, final, pool)   # the rest, on top of the better optimum
         if ok:
+            c, fit2 = _rival_look_alike(run, names, final, pool, scores, base_top, c, fit2, c2)
             run.trials[c.name].kept = True
             findings.append(_finding(c.name, fit2, final.fit_percent, run.trials[c.name]))
             for other_key in [k for k, v in pool.items() if v.name == c.name]:
@@ -126,6 +129,34 @@ def _one_more(run, findings: list, final, pool: dict) -> tuple[bool, object]:
                              f"{base_top:.0f} there (at most {ON_TOP_REFITS} are refitted on top, those that "
                              f"explain most and at least {MIN_EXPLAINED:g} of it)")
     return False, final
+
+
+def _rival_look_alike(run, names: str, final, pool: dict, scores: dict, base_top: float, c, fit2, cost2: float):
+    """``(candidate, fit)`` of the effect kept on top: ``c`` (refitted as ``fit2``, estimation cost ``cost2``), or its
+    best-screened look-alike left in ``pool`` where that one, refitted on top of the same findings, passes the keep
+    test too and ends lower on the estimation part.  The look-alike leaves ``pool``.
+
+    Why: the screening on top ranks look-alikes by a few steps each (a load before seals that drag harder one
+    way, where the seals are what is missing), and the first to pass the test would take the place of the other;
+    between two look-alikes that both pass, what the whole estimation part says decides."""
+    family = [k for k, v in pool.items() if v.name in family_of(c.name) and v.name != c.name
+              and (not math.isfinite(scores[k][0]) or scores[k][1] > MIN_EXPLAINED * base_top)]
+    if not family:
+        return c, fit2
+    key = max(family, key=lambda k: scores[k][1])
+    rival = pool.pop(key)
+    run.refitted_on_top.update({key, rival.label})
+    gain = scores[key][0]
+    screened = (f" (screening explains {gain:.0f} of {base_top:.0f} there; a look-alike of {c.name}, kept on top "
+                "first)" if math.isfinite(gain) else f" (a look-alike of {c.name}, kept on top first)")
+    tried = _refit_on_top(run, names, final, rival, screened, scores[key][2] if run.several_effects else None)
+    if tried is None or not tried[0] or not tried[3] < cost2:
+        run.trials[rival.name].status += f"; {c.name}, its look-alike, stays"
+        return c, fit2
+    run.trials[c.name].kept = False
+    run.trials[c.name].status += (f"; replaced by {rival.name}, its look-alike, which passes the test on top of "
+                                  f"{names} too and ends lower on the estimation part ({tried[3]:.0f} < {cost2:.0f})")
+    return rival, tried[1]
 
 
 def _screen_on_top(run, final, pool: dict) -> tuple[float, dict]:
@@ -269,6 +300,33 @@ def _finding(eff: str, fit, fit_before: float, trial: CandidateTrial) -> Finding
                    improvement_points=fit.fit_percent - fit_before, standard_errors=errors)
 
 
+def joint_finding(eff: str, fit, fit_before: float, trial: CandidateTrial) -> Finding:
+    """A finding of a set found jointly (:mod:`.window_sets`): its parameters as fitted together with the others,
+    the set's validation fit, its improvement over ``fit_before`` (:func:`rank_by_contribution` then says what
+    each adds with the others present)."""
+    return _finding(eff, fit, fit_before, trial)
+
+
+def rank_by_contribution(run, findings: list, final) -> list:
+    """Findings found together, most important first: by what each adds to the validation fit with all the others
+    present (``run.contributions``, drop-one's last test; one never tested keeps its place after the tested ones).
+    Each finding's ``fit_percent`` is then the final fit and its ``improvement_points`` that contribution (with
+    one finding left, its improvement over the nominal model).
+
+    Why not the order they were found in: found together, no finding came first; what each explains that the
+    others cannot is its importance (``diagnosis.md``: most important first)."""
+    if len(findings) < 2:
+        for f in findings:
+            f.fit_percent, f.improvement_points = final.fit_percent, final.fit_percent - run.baseline.fit0
+        return findings
+    tested = [f for f in findings if f.effect in run.contributions]
+    ranked = sorted(tested, key=lambda f: -run.contributions[f.effect]) + [f for f in findings if f not in tested]
+    for f in ranked:
+        f.fit_percent = final.fit_percent
+        f.improvement_points = run.contributions.get(f.effect, f.improvement_points)
+    return ranked
+
+
 def _derived(name: str, values: dict, fit) -> dict:
     """Parameters a user compares with a data sheet, derived from the fitted ones (the effect's own
     :meth:`~pneusim.model.effects.Effect.derived_parameters`)."""
@@ -283,7 +341,8 @@ def drop_one(run, findings: list, final) -> tuple[list, object]:
     """Each finding tested with the others present: the findings' fit without it (refitted warm from ``final``)
     against the fit with all, by the keep test; a finding that fails is dropped (the one that adds least
     first, then the rest tested again) and the fit without it becomes the final fit.  Returns ``(findings,
-    final)``, each finding's parameters those of the final fit, where all are fitted together.
+    final)``, each finding's parameters those of the final fit, where all are fitted together; ``run.contributions``
+    holds what each adds to the validation fit with the others present (its last test).
 
     Why: a finding kept on top of the first may only have helped because another effect was still missing, and
     an early finding may be a look-alike the later ones make redundant; only the test with every other finding
@@ -312,6 +371,7 @@ def drop_one(run, findings: list, final) -> tuple[list, object]:
                                                  final.fit_percent, basis.floor)
             run.trials[f.effect].status += (f"; drop-one, with {', '.join(e.name for e in others) or 'nothing'} "
                                             f"present (validation {without.fit_percent:.2f} % without it): {reason}")
+            run.contributions[f.effect] = final.fit_percent - without.fit_percent
             tests.append((ok, final.fit_percent - without.fit_percent, f, without))
         dropped = sorted((t for t in tests if not t[0]), key=lambda t: t[1])
         if not dropped:
@@ -331,6 +391,11 @@ def _added_parameters(fit, name: str) -> int:
             free = [q for q in fit.parameters if q.startswith(f"{name}.")]
             return type(e).added_parameters(free)
     return 1
+
+
+def refreshed(findings: list, final) -> list:
+    """``findings`` with their parameters (and errors) as fitted in ``final``, where all are fitted together."""
+    return [_refreshed(f, final) for f in findings]
 
 
 def _refreshed(f: Finding, final) -> Finding:

@@ -26,6 +26,7 @@ import numpy as np
 from .candidates import family_of
 from .refits import effect_at_prefit, estimation_cost, judge_refit, retry_from_neutral
 from .result import CandidateTrial
+from .run import WindowScreening
 from .rules import (AT_NOISE_ON_WINDOW, DEFER_WINDOW, EXPLAINED, MAX_FITS, MODEL_SHORT, PREFIT_EVALUATIONS,
                     PREFIT_START, RIVAL_WINDOW, WINDOW_SAMPLES, WINDOW_SHOWS_MISMATCH, bic_penalty, is_solver_failure)
 from .signatures import evidence_text
@@ -96,7 +97,7 @@ def screen_from_data_sheet(run, candidates: list, signatures: dict, start: int =
     t0 = float(recording.time_s[start])
     window_shows_it = base.normalised_residual > WINDOW_SHOWS_MISMATCH * AT_NOISE_ON_WINDOW
     n_window = base.n_residuals
-    variants, errors, explained_by = {}, {}, None
+    variants, errors, explained_by, singles = {}, {}, None, {}
     for c in one_start_each(candidates):
         if explained_by is not None and c.name not in family_of(explained_by):
             continue
@@ -110,12 +111,14 @@ def screen_from_data_sheet(run, candidates: list, signatures: dict, start: int =
             errors.setdefault(c.name, str(exc))
         run.say(f"from the data sheet on {base.samples} samples from {t0:g} s: {c.label} "
                 + (f"ends at {pre.normalised_residual:.3g} times noise (score {score:.0f})" if pre else "failed"))
+        singles[c.label] = (c, pre)
         if c.name not in variants or score > variants[c.name][0]:
             variants[c.name] = (score, c, pre)
         if (explained_by is None and window_shows_it and pre is not None
                 and pre.normalised_residual <= AT_NOISE_ON_WINDOW):
             explained_by = c.name
             run.say(f"{c.label} explains the window down to the noise: only its look-alikes are screened further")
+    run.window = WindowScreening(options, base, window_shows_it, singles)
     trials = {eff: _trial(eff, score, c, pre, base, t0, signatures, errors)
               for eff, (score, c, pre) in variants.items()}
     ranked = sorted(variants, key=lambda k: -variants[k][0])

@@ -141,6 +141,7 @@ def locate_mismatch(recording, rig, model_states: dict, noise_std: dict, window_
     n_windows = max(1, n // m)
     threshold = float(stats.chi2.ppf(1.0 - FALSE_ALARM / n_windows, m) / m)
     masks = operating_conditions(recording, rig)
+    longest = max(m, int(EPISODE_LENGTH * n))
     found, info = [], {"threshold": threshold, "window_samples": m, "flagged_fraction": {}}
     measured = {"position_m": recording.position_m}
     if recording.has_pressures:
@@ -157,12 +158,28 @@ def locate_mismatch(recording, rig, model_states: dict, noise_std: dict, window_
         flagged = mean_sq > threshold
         info["flagged_fraction"][name] = float(np.mean(flagged))
         edges = np.flatnonzero(np.diff(np.concatenate([[0], flagged.astype(int), [0]])))
-        for a, b in zip(edges[::2], edges[1::2]):
+        for a, b in _pieces(edges, longest):
             found.append(MismatchWindow(float(t[a]), float(t[min(b, n) - 1]), name, _describe(masks, a, b),
                                         float(np.max(mean_sq[a:b]))))
     found.sort(key=lambda w: -w.score)
     found = sorted(found[:max_windows], key=lambda w: (w.t_start_s, w.signal))
     return found, info
+
+
+def _pieces(edges: np.ndarray, longest: int) -> list:
+    """The flagged stretches (``edges``: alternate starts and stops) as windows of at most ``longest`` samples:
+    a stretch longer than that is cut into equal pieces.
+
+    Why: a model far from the recording is above noise nearly everywhere, and one window "0-20 s, holding still"
+    tells a reader neither where the mismatch is largest nor under which condition; pieces of at most
+    :data:`~.rules.EPISODE_LENGTH` of the recording each get their own condition and score, and the report shows the
+    strongest."""
+    out = []
+    for a, b in zip(edges[::2], edges[1::2]):
+        count = -(-(b - a) // longest)
+        cuts = np.linspace(a, b, count + 1).round().astype(int)
+        out += list(zip(cuts[:-1], cuts[1:]))
+    return out
 
 
 _SIGNAL_ORDER = ("position_m", "pressure_a_Pa", "pressure_b_Pa")

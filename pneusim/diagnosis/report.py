@@ -20,21 +20,13 @@ from pathlib import Path
 import numpy as np
 
 from ..outputs import savefig_atomic, write_json_atomic, write_text_atomic
-from .locate import named_states, velocity_estimate
+from .evidence import plot_evidence, pyplot as _plt
+from .locate import named_states
 from .refits import noise_levels
 from .result import DiagnosisResult
-from .rules import COMMAND_MAP_BINS, COMMAND_MAP_SPAN
+from .rules import SETS_SHOWN
 
 __all__ = ["write_report"]
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def _shade(ax, result, signal=None):
@@ -153,157 +145,16 @@ def plot_residuals(result: DiagnosisResult, path, noise: dict) -> Path:
     return Path(path)
 
 
-def _binned(x, y, bins=20):
-    ok = np.isfinite(x) & np.isfinite(y)
-    x, y = x[ok], y[ok]
-    if x.size < bins * 3:
-        return np.array([]), np.array([])
-    values = np.unique(x)
-    if values.size <= bins:  # a few distinct levels (pulse commands): one point per level
-        return values, np.array([y[x == v].mean() for v in values])
-    edges = np.quantile(x, np.linspace(0, 1, bins + 1))
-    centres, means = [], []
-    for a, b in zip(edges[:-1], edges[1:]):
-        m = (x >= a) & (x <= b)
-        if m.sum() > 2:
-            centres.append(x[m].mean())
-            means.append(y[m].mean())
-    return np.array(centres), np.array(means)
-
-
-#: which evidence plot shows each effect's signature (the residual over time for any other effect): the
-#: signature its ``evidence`` text reads (an Effect fact the contract does not declare yet)
-EVIDENCE_PLOTS = {
-    "friction_asymmetry": "direction", "external_load": "position",
-    "pressure_dependent_friction": "pressure difference", "supply_pressure_droop": "pressure difference",
-    "transport_delay": "lag", "valve_dynamics": "lag", "valve_deadband": "command map", "valve_offset": "command map",
-}
-
-
-def _binned_residuals(ax, x, residuals, xlabel: str, ylabel: str, title: str) -> None:
-    """Binned means of each ``(residual, colour, label)`` against ``x``."""
-    for e, c, lab in residuals:
-        cx, cy = _binned(x, e)
-        ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    ax.set_title(title)
-
-
-def _plot_direction(ax, result, v, x, e_nom, e_fin, nom, fin):
-    _binned_residuals(ax, v * 1e3, [(e_nom * 1e3, "C0", "nominal"), (e_fin * 1e3, "C2", "with findings")],
-                      "measured velocity (mm/s)", "binned mean velocity residual (mm/s)",
-                      "residual against direction of motion")
-
-
-def _plot_position(ax, result, v, x, e_nom, e_fin, nom, fin):
-    _binned_residuals(ax, x * 1e3, [(e_nom * 1e3, "C0", "nominal"), (e_fin * 1e3, "C2", "with findings")],
-                      "position (mm)", "binned mean velocity residual (mm/s)", "residual against position")
-
-
-def _plot_pressure_difference(ax, result, v, x, e_nom, e_fin, nom, fin):
-    rec = result.nominal_fit.recording
-    if rec.has_pressures:
-        dp = np.abs(rec.pressure_a_Pa - rec.pressure_b_Pa)
-        xlabel = "|p_A - p_B| measured (bar)"
-    else:
-        dp = np.abs(nom["pressure_a_Pa"] - nom["pressure_b_Pa"])
-        xlabel = "|p_A - p_B| of the nominal model (bar)"
-    residuals = [(np.abs(e_nom) * 1e3, "C0", "nominal"), (np.abs(e_fin) * 1e3, "C2", "with findings")]
-    _binned_residuals(ax, dp * 1e-5, residuals, xlabel, "binned mean |velocity residual| (mm/s)",
-                      "residual against the pressure difference across the seal")
-
-
-def _plot_lag(ax, result, v, x, e_nom, e_fin, nom, fin):
-    rec = result.nominal_fit.recording
-    t, u = rec.time_s, rec.valve_cmd_V
-    dt = float(t[1] - t[0])
-    du = np.diff(u)
-    lags = np.arange(0, max(3, min(int(0.2 / dt), du.size // 4)))
-    for st, c, lab in ((nom, "C0", "nominal"), (fin, "C2", "with findings")):
-        dr = np.diff(np.where(np.isfinite(st["position_m"]), x - st["position_m"], 0.0))
-        cc = [np.corrcoef(du[:du.size - L], dr[L:])[0, 1] if np.std(dr[L:]) > 0 else np.nan for L in lags]
-        ax.plot(lags * dt * 1e3, cc, "o-", color=c, label=lab, ms=3)
-    ax.axhline(0, color="0.5", lw=0.5)
-    ax.set_xlabel("lag (ms)")
-    ax.set_ylabel("correlation of command and residual increments (-)")
-    ax.set_title("input-residual cross-correlation")
-
-
-def _plot_command_map(ax, result, v, x, e_nom, e_fin, nom, fin):
-    rig = result.nominal_fit.rig
-    u = result.nominal_fit.recording.valve_cmd_V
-    null = float(rig.params.get("valve_null_V", 5.0))
-    span = float(rig.params.get("valve_max_V", 10.0) - rig.params.get("valve_min_V", 0.0))
-    near = np.abs(u - null) <= COMMAND_MAP_SPAN * span
-    for vv, c, lab in ((v, "0.2", "measured"), (nom["velocity_m_per_s"], "C0", "nominal"),
-                       (fin["velocity_m_per_s"], "C2", "with findings")):
-        cx, cy = _binned(u[near], vv[near] * 1e3, bins=COMMAND_MAP_BINS)
-        ax.plot(cx, cy, "o-", color=c, label=lab, ms=3)
-    ax.axvline(null, color="0.5", lw=0.5, ls=":")
-    ax.axhline(0.0, color="0.5", lw=0.5)
-    ax.set_xlabel(f"valve command within {COMMAND_MAP_SPAN * span:.2g} V of null (V)")
-    ax.set_ylabel("binned mean velocity (mm/s)")
-    ax.set_title("command-velocity map near null\n(dead band: a flat spot at zero; offset: a shifted crossing)",
-                 fontsize=9)
-
-
-def _plot_over_time(ax, result, v, x, e_nom, e_fin, nom, fin):
-    rec = result.nominal_fit.recording
-    t, s = rec.time_s, result.signatures
-    ax.plot(t, (x - nom["position_m"]) * 1e3, lw=0.6, color="C0", label="nominal")
-    ax.plot(t, (x - fin["position_m"]) * 1e3, lw=0.6, color="C2", label="with findings")
-    if rec.has_pressures:
-        ax2 = ax.twinx()
-        ax2.plot(t, (rec.pressure_a_Pa - nom["pressure_a_Pa"]) * 1e-3, lw=0.4, color="C1", alpha=0.6,
-                 label="p_A residual, nominal (kPa)")
-        ax2.plot(t, (rec.pressure_a_Pa - fin["pressure_a_Pa"]) * 1e-3, lw=0.4, color="C4", alpha=0.6,
-                 label="p_A residual, with findings (kPa)")
-        ax2.set_ylabel("pressure residual (kPa)")
-        ax2.legend(loc="lower right", fontsize=7)
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("position residual (mm)")
-    ax.set_title(f"residual over time (creep near null {s.get('creep_mm_s', float('nan')):+.3f} mm/s)")
-
-
-_PLOTS = {"direction": _plot_direction, "position": _plot_position, "pressure difference": _plot_pressure_difference,
-          "lag": _plot_lag, "command map": _plot_command_map}
-
-
-def plot_evidence(result: DiagnosisResult, k: int, path) -> Path:
-    """The evidence of finding ``k``: the signature before (nominal) and after (with the findings up to k),
-    as :data:`EVIDENCE_PLOTS` says for its effect."""
-    plt = _plt()
-    eff = result.findings[k].effect
-    rec = result.nominal_fit.recording
-    t, x = rec.time_s, rec.position_m
-    nom, fin = named_states(result.nominal_fit), named_states(result.final_fit)
-    v = velocity_estimate(t, x)
-    e_nom = v - velocity_estimate(t, np.nan_to_num(nom["position_m"]))
-    e_fin = v - velocity_estimate(t, np.nan_to_num(fin["position_m"]))
-    fig, ax = plt.subplots(figsize=(7, 4.2))
-    plot = _PLOTS.get(EVIDENCE_PLOTS.get(eff), _plot_over_time)
-    plot(ax, result, v, x, e_nom, e_fin, nom, fin)
-    ax.legend(fontsize=8)
-    fig.suptitle(f"{k + 1}. {eff}", fontsize=10)
-    fig.tight_layout()
-    savefig_atomic(fig, path, dpi=110)
-    plt.close(fig)
-    return Path(path)
-
-
 def _value(v):
     if isinstance(v, str):
         return v
     return f"{v:.4g}" if v is not None and math.isfinite(v) else "n/a"
 
 
-def _markdown(result: DiagnosisResult, evidence_files) -> str:
-    d = result.to_dict()
-    lines = [f"# Mismatch diagnosis of {result.recording}", "",
-             f"Rig `{result.rig}`; validation window {d['validation']['t_start_s']:.2f}-{d['validation']['t_end_s']:.2f} s "
-             "(never used for fitting).", "",
-             "## Verdict", ""]
+def _verdict_lines(result: DiagnosisResult) -> list:
+    """The verdict: the findings most important first, ``other`` and where, an incomplete search, and the table of
+    validation fits with the findings."""
+    lines = []
     named = [f for f in result.findings if f.effect != "other"]
     other = next((f for f in result.findings if f.effect == "other"), None)
     if not result.findings:
@@ -319,12 +170,32 @@ def _markdown(result: DiagnosisResult, evidence_files) -> str:
     if result.search == "one effect first, then several":
         lines += ["", "The first findings left the model above noise: the search went on for more effects on top "
                       "of them."]
+    joint = result.search == "several effects, found jointly"
+    if joint:
+        lines += ["", "No effect alone explained the window where the mismatch is largest: sets of effects were "
+                      "fitted together there, the best set fitted whole, and each of its effects tested with the "
+                      "others present."]
     lines += ["", "| model | validation fit of the position (%) |", "|---|---|",
               f"| nominal (fitted) | {result.nominal['fit_percent']:.2f} |"]
-    acc = []
-    for f in result.findings:
-        acc.append(f.effect)
-        lines.append(f"| nominal + {' + '.join(acc)} | {f.fit_percent:.2f} (+{f.improvement_points:.2f}) |")
+    if joint and len(named) >= 2:
+        lines.append(f"| nominal + {' + '.join(f.effect for f in named)} | {result.final_fit_percent:.2f} |")
+        lines += [f"| ... without `{f.effect}` | {f.fit_percent - f.improvement_points:.2f} "
+                  f"({-f.improvement_points:+.2f}) |" for f in named]
+    else:
+        acc = []
+        for f in result.findings:
+            acc.append(f.effect)
+            lines.append(f"| nominal + {' + '.join(acc)} | {f.fit_percent:.2f} (+{f.improvement_points:.2f}) |")
+    return lines
+
+
+def _markdown(result: DiagnosisResult, evidence_files) -> str:
+    d = result.to_dict()
+    lines = [f"# Mismatch diagnosis of {result.recording}", "",
+             f"Rig `{result.rig}`; validation window {d['validation']['t_start_s']:.2f}-{d['validation']['t_end_s']:.2f} s "
+             "(never used for fitting).", "",
+             "## Verdict", ""]
+    lines += _verdict_lines(result)
     lines += ["", "![measured vs nominal vs improved](fit.png)", "",
               "![the strongest mismatch episode, zoomed](zoom.png)", "",
               "![residuals before and after](residuals.png)", ""]
@@ -356,6 +227,15 @@ def _markdown(result: DiagnosisResult, evidence_files) -> str:
     for c in result.candidates:
         lines.append(f"| {c.effect} | {_value(c.score)} | {'yes' if c.refitted else 'no'} | "
                      f"{_value(c.fit_percent)} | {'yes' if c.kept else 'no'} | {c.status} |")
+    if result.window_sets:
+        lines += ["", "## Effects fitted together on the mismatch window", "",
+                  "No effect alone explained the window where the nominal model's residual is largest; these sets "
+                  "were pre-fitted together there from the data sheet (objective: residuals and the continuity "
+                  "defects left open, rms in noise units; criterion N ln C + k ln N, lower is better), the best "
+                  f"{SETS_SHOWN}:", "", "| effects | objective / noise | criterion | fitted whole |",
+                  "|---|---|---|---|"]
+        lines += [f"| {w['variants']} | {_value(w.get('window_objective_normalised'))} | {_value(w.get('criterion'))} "
+                  f"| {w.get('fitted_whole', '-')} |" for w in result.window_sets[:SETS_SHOWN]]
     lines += ["", "## Nominal parameters, fitted without and with the findings", "",
               "Without the missing physics, the nominal parameters bend to make up for it; with the findings "
               "modelled they move back toward physical values.", "",

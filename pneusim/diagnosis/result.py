@@ -161,6 +161,10 @@ class DiagnosisResult:
         ``first_finding_s`` (confirming the first round and the delay scan), ``on_top_s`` (the search on top of
         the findings) and ``drop_one_s``; ``cpu_s``: the diagnosis's processor time (this process, both fit
         threads); ``budget_s``: the time budget it used (model work at the reference rate, :mod:`.budget`).
+    window_sets : list of dict
+        Where no effect alone explained the screening's window: the sets of effects pre-fitted together there
+        (:mod:`.window_sets`), best first, each ``{"effects", "variants", "window_objective_normalised",
+        "criterion"}``.
     nominal_fit, final_fit : FitResult
         The fits themselves (for plots; not part of the JSON).
     """
@@ -180,6 +184,7 @@ class DiagnosisResult:
     episodes: list = field(default_factory=list)
     final_parameters: dict = field(default_factory=dict)
     timing: dict = field(default_factory=dict)
+    window_sets: list = field(default_factory=list)
     nominal_fit: object = None
     final_fit: object = None
     signatures: dict = field(default_factory=dict)
@@ -208,6 +213,7 @@ class DiagnosisResult:
             "status": self.status,
             "search": self.search,
             "candidates": [c.to_dict() for c in self.candidates],
+            **({"window_sets": list(self.window_sets)} if self.window_sets else {}),
             "test": self.test,
             "timing": {"total_s": _num(self.seconds, 4), **{k: _num(v, 4) for k, v in self.timing.items()}},
         }

@@ -31,10 +31,10 @@ __all__ = [
     "SCREEN_SAMPLES", "SCREEN_EVALUATIONS", "SCANNED_EVALUATIONS", "DEFECT_WEIGHT", "DELAY_LAG_FACTORS",
     "DELAY_LAG_CORRELATION", "RELATIVE_SCORE", "MIN_EXPLAINED",
     "WINDOW_SAMPLES", "PREFIT_EVALUATIONS", "AT_NOISE_ON_WINDOW", "WINDOW_SHOWS_MISMATCH", "MAX_FITS", "EXPLAINED",
-    "RIVAL_WINDOW", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS",
+    "RIVAL_WINDOW", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS", "SET_LEADERS", "WINDOW_DELAY_STEPS", "SET_EXPLAINS_WINDOW",
     "MIN_IMPROVEMENT_POINTS", "ERROR_SHRINK", "CLEARLY_SHORT", "AT_NOISE", "PERFECT_ERROR",
     "DELAY_SCAN_ERROR_RATIO", "SCAN_FACTOR", "SCAN_REFITS", "DELAY_GRID_PER_SAMPLE", "MIN_DELAY_SAMPLES",
-    "ON_TOP_REFITS", "OTHER_RESIDUAL", "FURTHER_SEARCH_RESIDUAL", "MAX_CLOSEST", "TIME_BUDGET_S", "WORK_UNITS_PER_S", "BUDGET_BACKSTOP", "BUDGET_NOMINAL_FITS", "default_budget_s", "COMMAND_MAP_SPAN", "COMMAND_MAP_BINS",
+    "ON_TOP_REFITS", "OTHER_RESIDUAL", "FURTHER_SEARCH_RESIDUAL", "MAX_CLOSEST", "TIME_BUDGET_S", "WORK_UNITS_PER_S", "BUDGET_BACKSTOP", "BUDGET_NOMINAL_FITS", "default_budget_s", "COMMAND_MAP_SPAN", "COMMAND_MAP_BINS", "HOLDING_SPAN", "SETS_SHOWN",
     "SOLVER_FAILURES",
     "bic_penalty", "information_gain", "noise_floor_points", "validation_room", "passes_test", "keep_test_text",
     "screening_route", "is_solver_failure", "rules_table", "table_markdown",
@@ -132,6 +132,16 @@ DEFER_WINDOW = 5.0
 PREFIT_START = 0.5
 #: (starts) of a whole fit from the data sheet: the pre-fit on the window chose its start
 DATA_SHEET_FIT_STARTS = 1
+#: (effects) where no effect alone explains the window, the effects whose pre-fits alone lead there are pre-fitted
+#: together, in pairs (each variant of each), as the several effects a recording may lack at once
+SET_LEADERS = 4
+#: (pre-fits) before the pairs, the best screened transport delay is followed downhill on the window by at most
+#: this many pre-fits, a factor SCAN_FACTOR apart: the screened delays sit where other missing physics moved the lag
+WINDOW_DELAY_STEPS = 4
+#: (normalised objective) the best set of the window is fitted whole only where its pre-fit ends within this: a set
+#: that leaves the window an order of magnitude above noise explains too little of it to choose the physics (more
+#: is missing than the set, or something outside the vocabulary), and the one-effect-first search decides
+SET_EXPLAINS_WINDOW = 10.0
 
 # -------------------------------------------------------------------------------------------- the keep test
 #: (points) a refit must raise the validation fit by more than max(this, F): less is within what a short
@@ -201,6 +211,10 @@ BUDGET_NOMINAL_FITS = 10.0
 COMMAND_MAP_SPAN = 0.15
 #: (bins) the map's resolution near null: a bin per command level where there are fewer
 COMMAND_MAP_BINS = 40
+#: (fraction of the valve's span) the piston holds where the command is this close to null: a leak's creep shows there
+HOLDING_SPAN = 0.02
+#: (sets) the report lists at most this many of the sets fitted together on the window, the best (the JSON has all)
+SETS_SHOWN = 8
 
 
 # ---------------------------------------------------------------------------------- the keep test, as a rule

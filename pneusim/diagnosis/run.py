@@ -17,7 +17,7 @@ from typing import Callable, NamedTuple
 
 from .rules import MAX_FINDINGS, MAX_LOOKALIKES, MAX_REFITS
 
-__all__ = ["NominalBaseline", "DiagnosisRun"]
+__all__ = ["NominalBaseline", "WindowScreening", "DiagnosisRun"]
 
 
 class NominalBaseline(NamedTuple):
@@ -32,6 +32,17 @@ class NominalBaseline(NamedTuple):
     floor: float
     validation_fraction: float
     fit: object = None
+
+
+class WindowScreening(NamedTuple):
+    """The screening from the data sheet's window (:mod:`.from_data_sheet`): the pre-fit options that describe it
+    (its first sample, length, evaluations), the nominal model's pre-fit there (``base``), whether it shows the
+    mismatch, and every candidate's pre-fit alone (``singles``: ``{label: (candidate, pre-fit or None)}``)."""
+
+    options: dict
+    base: object
+    shows_mismatch: bool
+    singles: dict
 
 
 def _silent(message: str) -> None:
@@ -61,6 +72,14 @@ class DiagnosisRun:
         What the steps found (see the module docstring).
     refitted_on_top : set
         Labels of the candidates refitted on top of findings (none is refitted twice on top of the same ones).
+    window : WindowScreening or None
+        The screening from the data sheet's window: its pre-fit options, the nominal model's pre-fit there and
+        every candidate's pre-fit alone (None where the screening ran around the nominal fit).
+    window_sets : list
+        The sets of effects pre-fitted together on that window (:mod:`.window_sets`), best first.
+    contributions : dict
+        ``{effect: points}``: the validation fit each finding adds with all the others present, from the last
+        drop-one test (:func:`.findings.drop_one`).
     """
 
     recording: object
@@ -79,6 +98,9 @@ class DiagnosisRun:
     second_only: dict = field(default_factory=dict)
     on_top: dict = field(default_factory=dict)
     refitted_on_top: set = field(default_factory=set)
+    window: object = None
+    window_sets: list = field(default_factory=list)
+    contributions: dict = field(default_factory=dict)
 
     @property
     def noise(self) -> dict:

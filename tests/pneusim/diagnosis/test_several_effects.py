@@ -65,7 +65,7 @@ def test_two_effects_at_once_are_both_found(two_effects):
 
 @pytest.mark.minutes
 def test_the_report_draws_every_plot_with_its_axes_labelled(two_effects, tmp_path, monkeypatch):
-    from pneusim.diagnosis import report
+    from pneusim.diagnosis import evidence, report
 
     drawn = {}
     save = report.savefig_atomic
@@ -75,6 +75,7 @@ def test_the_report_draws_every_plot_with_its_axes_labelled(two_effects, tmp_pat
         return save(fig, path, **kwargs)
 
     monkeypatch.setattr(report, "savefig_atomic", recording_savefig)
+    monkeypatch.setattr(evidence, "savefig_atomic", recording_savefig)
     index = write_report(two_effects, tmp_path / "report")
     assert set(drawn) == {"fit.png", "zoom.png", "residuals.png", "evidence-1-external_load.png",
                           "evidence-2-valve_deadband.png"}

@@ -143,6 +143,43 @@ def test_a_third_effect_is_searched_on_top_of_two_among_candidates_the_first_rou
     assert len(findings) == 2 and len(refitted) <= 2
 
 
+def test_of_two_look_alikes_that_pass_on_top_the_one_that_explains_more_is_kept():
+    """On top of a leak, a load screens best (a bias that seals dragging harder one way also leave) and passes the
+    test; the seals' asymmetry, its look-alike, is refitted on top too, passes and ends lower on the estimation
+    part: it is the finding, the load is not."""
+    from pneusim.diagnosis.findings import add_findings
+
+    n = 1000
+    explains = {"external_load": 3.0, "friction_asymmetry": 1.0, "valve_offset": 8.0}
+
+    def rms_of(effects):
+        names = {e.name for e in effects}
+        return min([explains[k] for k in names if k in explains], default=9.0)
+
+    def stand_in_screen(fit, recording, candidate, noise, samples=None):
+        if candidate is None:
+            return {"cost": fit.rms ** 2 * n}
+        screened = {"external_load": 2.0, "friction_asymmetry": 4.0, "valve_offset": 8.5}[candidate.name]
+        return {"cost": screened ** 2 * n, "parameters": {}}
+
+    def stand_in_refit(recording, rig, effects, warm, start_values=None):
+        rms = rms_of(effects)
+        return StandInFit(rms, 100.0 - 2.0 * rms, effects, n=n)
+
+    leak = Candidate("leakage", "leakage", make_effect("leakage"), [])
+    trials = {"leakage": CandidateTrial("leakage", 1.0, "", status="kept", kept=True)}
+    refits = {"leakage": (StandInFit(9.0, 82.0, [leak.effect], n=n), leak)}
+    basis = NominalBaseline(NOISE, 13.0 ** 2 * n, n, 70.0, 0.2, 0.3, None)
+    run = stand_in_run(basis, trials=trials, refits=refits, screen=stand_in_screen, refit=stand_in_refit,
+                       keep_test=lambda c0, c1, n_, k, f0, f1, floor: (c1 < 0.5 * c0, 0.5, "test"))
+    run.several_effects, run.max_findings = True, 2
+    run.on_top = {name: Candidate(name, name, make_effect(name), []) for name in explains}
+    findings, final = add_findings(run, ["leakage"])
+    assert [f.effect for f in findings] == ["leakage", "friction_asymmetry"]
+    assert final.rms == 1.0
+    assert not trials["external_load"].kept and "replaced by friction_asymmetry" in trials["external_load"].status
+
+
 def test_the_search_goes_on_from_the_one_effect_first_findings_among_candidates_not_yet_refitted_on_top():
     """The one-effect-first search refits on top only what the first round kept or set aside; where its findings
     leave the model above noise (:func:`above_noise`), :func:`more_findings` goes on among every vocabulary variant

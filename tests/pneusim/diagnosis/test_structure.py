@@ -28,7 +28,7 @@ PACKAGE = Path(diagnosis.__file__).resolve().parent
 DOC = PACKAGE.parents[1] / "docs" / "diagnosis.md"
 MODULES = sorted(PACKAGE.glob("*.py"))
 #: where a vocabulary effect may be named: what the diagnosis does for that effect alone
-NAMED_EFFECTS = {"delay.py": {"transport_delay"}, "refits.py": {"leakage"}, "report.py": set(EFFECTS)}
+NAMED_EFFECTS = {"delay.py": {"transport_delay"}, "refits.py": {"leakage"}, "evidence.py": set(EFFECTS)}
 
 
 @pytest.mark.parametrize("path", MODULES, ids=lambda p: p.name)
