@@ -240,8 +240,8 @@ def fit_set(run, best: WindowSet, window_nominal: float):
     best.outcome = f"validation {fit.fit_percent:.2f} %: {reason}" + ("" if kept else " (not kept)")
     for c in best.candidates:
         trial = _trial_note(run, c, f"fitted together with {_others(best, c)} from the data sheet (the set that "
-                                    f"explains the mismatch window best, {best.normalised_objective:.3g} times the "
-                                    f"noise there): {reason}")
+                                    f"explains the mismatch window best, {best.label}, "
+                                    f"{best.normalised_objective:.3g} times the noise there): {reason}")
         trial.seconds = (trial.seconds or 0.0) + seconds / len(best.candidates)
         trial.refitted = True
         trial.fit_percent, trial.improvement_points = fit.fit_percent, fit.fit_percent - basis.fit0
