@@ -75,7 +75,7 @@ from .other import above_noise, other_finding
 from .refits import estimation_cost, fit_from_data_sheet, fit_nominal, noise_levels, refit
 from .result import DiagnosisResult
 from .rules import (AT_NOISE_ON_WINDOW, MAX_FINDINGS, MAX_FINDINGS_SEVERAL, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, MODEL_SHORT,
-                    SCREEN_SAMPLES, SET_EXPLAINS_WINDOW, TIME_BUDGET_S, VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE,
+                    SCREEN_SAMPLES, SET_EXPLAINS_WINDOW, SET_SHRINK, TIME_BUDGET_S, VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE,
                     VALIDATION_MOTION_NOISE, WINDOW_SAMPLES,
                     default_budget_s, keep_test_text, noise_floor_points, passes_test, screening_route,
                     validation_room)
@@ -323,8 +323,9 @@ class Diagnosis:
         others present (8, drop-one), the findings ranked by what each adds with the others present, and the
         search goes on on top of them where they leave the model above noise (7).  Returns ``(findings, final
         fit)``, or None where the one-effect-first confirmation is to run instead (a single effect explains the
-        window, the best set is a single effect or leaves the window above :data:`~.rules.SET_EXPLAINS_WINDOW` times
-        noise, or its whole fit failed the keep test)."""
+        window, the best set is a single effect, leaves the window above :data:`~.rules.SET_EXPLAINS_WINDOW` times
+        noise or above :data:`~.rules.SET_SHRINK` of the best single effect's objective, or its whole fit failed the
+        keep test)."""
         window = run.window
         singles = [pre for _, pre in (window.singles.values() if window else ()) if pre is not None]
         if not (window and window.shows_mismatch and singles
@@ -343,6 +344,14 @@ class Diagnosis:
                             f"{SET_EXPLAINS_WINDOW:g}")
             self._say(name, f"the best set, {best.label}, leaves the window {best.normalised_objective:.3g} times "
                             f"noise (above {SET_EXPLAINS_WINDOW:g}): too little explained to choose the physics there")
+            return None
+        single = min((w for w in run.window_sets if len(w.candidates) == 1), default=None,
+                     key=lambda w: w.normalised_objective)
+        if single is not None and best.normalised_objective > SET_SHRINK * single.normalised_objective:
+            best.outcome = (f"not fitted: {best.normalised_objective:.3g} times noise on the window, not {SET_SHRINK:g} "
+                            f"of the best single effect's ({single.label}, {single.normalised_objective:.3g})")
+            self._say(name, f"the best set, {best.label}, ends a hair below {single.label} alone on the window: "
+                            f"one effect first")
             return None
         self._say(name, f"the set that explains the window best: {best.label} "
                         f"({best.normalised_objective:.3g} times noise there)")

@@ -31,7 +31,7 @@ __all__ = [
     "SCREEN_SAMPLES", "SCREEN_EVALUATIONS", "SCANNED_EVALUATIONS", "DEFECT_WEIGHT", "DELAY_LAG_FACTORS",
     "DELAY_LAG_CORRELATION", "RELATIVE_SCORE", "MIN_EXPLAINED",
     "WINDOW_SAMPLES", "PREFIT_EVALUATIONS", "AT_NOISE_ON_WINDOW", "WINDOW_SHOWS_MISMATCH", "MAX_FITS", "EXPLAINED",
-    "RIVAL_WINDOW", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS", "SET_LEADERS", "WINDOW_DELAY_STEPS", "SET_EXPLAINS_WINDOW",
+    "RIVAL_WINDOW", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS", "SET_LEADERS", "WINDOW_DELAY_STEPS", "SET_EXPLAINS_WINDOW", "SET_SHRINK",
     "MIN_IMPROVEMENT_POINTS", "ERROR_SHRINK", "CLEARLY_SHORT", "AT_NOISE", "PERFECT_ERROR",
     "DELAY_SCAN_ERROR_RATIO", "SCAN_FACTOR", "SCAN_REFITS", "DELAY_GRID_PER_SAMPLE", "MIN_DELAY_SAMPLES",
     "ON_TOP_REFITS", "OTHER_RESIDUAL", "FURTHER_SEARCH_RESIDUAL", "MAX_CLOSEST", "TIME_BUDGET_S", "WORK_UNITS_PER_S", "BUDGET_BACKSTOP", "BUDGET_NOMINAL_FITS", "default_budget_s", "COMMAND_MAP_SPAN", "COMMAND_MAP_BINS", "HOLDING_SPAN", "SETS_SHOWN",
@@ -142,6 +142,10 @@ WINDOW_DELAY_STEPS = 4
 #: that leaves the window an order of magnitude above noise explains too little of it to choose the physics (more
 #: is missing than the set, or something outside the vocabulary), and the one-effect-first search decides
 SET_EXPLAINS_WINDOW = 10.0
+#: (ratio of window objective rms) ... and only where it ends at most this fraction of the best single effect's, as
+#: the keep test asks a refit to shrink the validation error (ERROR_SHRINK): the window's information criterion
+#: counts its residuals as independent, which they are not, and lets a second effect in for a hair
+SET_SHRINK = 0.9
 
 # -------------------------------------------------------------------------------------------- the keep test
 #: (points) a refit must raise the validation fit by more than max(this, F): less is within what a short

@@ -26,7 +26,8 @@ weighed them (:attr:`pneusim.fit.PrefitResult.objective`): a pre-fit whose segme
 residual with the jumps, and an effect with states of its own has more states to jump.  The set of the lowest
 information criterion on the window, ``N ln C + k ln N`` (:func:`criterion`), singles included, is the joint
 candidate (:func:`search_sets`).  Where it holds two effects or more and brings the window within
-:data:`~.rules.SET_EXPLAINS_WINDOW` (a set that leaves more explains too little to choose the physics), it is fitted whole from its pre-fit values and
+:data:`~.rules.SET_EXPLAINS_WINDOW` (a set that leaves more explains too little to choose the physics) and below
+:data:`~.rules.SET_SHRINK` of the best single effect's objective, it is fitted whole from its pre-fit values and
 kept by the keep test against the nominal model (:func:`fit_set`); the diagnosis then tests each member with the
 others present (drop-one, :func:`.findings.drop_one`) and goes on on top of the survivors.  Where it is a single
 effect, or its whole fit fails the test, the one-effect-first confirmation runs as before

@@ -163,3 +163,21 @@ def test_a_pair_that_leaves_the_window_far_above_noise_is_not_fitted_whole(monke
         assert estimator.Diagnosis()._joint(run, "stand-in") is None     # fit_set's stand-in: its whole fit failed
         assert fitted == ([pair] if fitted_whole else [])
         assert ("not fitted" in pair.outcome) is not fitted_whole
+
+
+def test_a_pair_a_hair_below_the_best_single_effect_is_not_fitted_whole(monkeypatch):
+    """The window's criterion counts its residuals as independent and lets a second effect in for a hair: a pair is
+    fitted whole only where it ends at most SET_SHRINK of the best single effect's objective there."""
+    from pneusim.diagnosis import estimator
+    from pneusim.diagnosis.rules import SET_SHRINK
+    from pneusim.diagnosis.run import WindowScreening
+
+    for ratio, fitted_whole in ((0.995, False), (0.9 * SET_SHRINK, True)):
+        single = WindowSet((HEAT,), _pre(3.0))
+        pair, fitted = WindowSet((HEAT, LOAD), _pre(3.0 * ratio)), []
+        monkeypatch.setattr(estimator, "search_sets", lambda *args, **kwargs: [pair, single])
+        monkeypatch.setattr(estimator, "fit_set", lambda run, best, nominal: fitted.append(best))
+        run = stand_in_run(NominalBaseline(NOISE, 1.0, N, 0.0, 0.2, 0.3, None))
+        run.window = WindowScreening({}, _pre(60.0), True, {c.label: (c, _pre(40.0)) for c in (HEAT, LOAD)})
+        assert estimator.Diagnosis()._joint(run, "stand-in") is None
+        assert fitted == ([pair] if fitted_whole else [])
