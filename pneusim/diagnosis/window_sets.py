@@ -151,7 +151,7 @@ def search_sets(run, singles: dict, options: dict, max_effects: int) -> list[Win
     single, best :func:`criterion` first."""
     refine_delay(run, singles, options)
     sets = [WindowSet((c,), pre) for c, pre in singles.values() if pre is not None]
-    variants = leading_variants(singles)
+    variants = leading_variants({k: (c, pre) for k, (c, pre) in singles.items() if c.effect.window_pairs})
     if max_effects < 2 or len(variants) < 2:
         return sorted(sets, key=criterion)
     for a, b in itertools.combinations(variants, 2):

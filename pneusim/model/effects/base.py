@@ -121,6 +121,9 @@ class Effect:
     data_sheet_start: tuple[str, float] | None = REQUIRED
     #: True when the screening starts away from the nominal model: it gets more trust-region evaluations
     scanned: bool = False
+    #: False when the effect is left out of the pairs pre-fitted together on the mismatch window (it is pre-fitted
+    #: there alone as every effect is): its own states, fitted freely on a window, absorb whatever else is missing
+    window_pairs: bool = True
 
     def __init__(self, **values):
         self.values = dict(self.parameters)

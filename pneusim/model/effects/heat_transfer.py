@@ -40,6 +40,10 @@ class HeatTransfer(Effect):
     #: the screening from the data sheet runs each start to its end: the faster one stands for both
     data_sheet_start = ("time_constant_s", HEAT_SCAN_S[0])
     scanned = True
+    #: free chamber temperatures on a window from the data sheet take up any other missing physics: heat transfer
+    #: was the partner of every window pair that named a wrong effect on the practice sets, and of none that named a
+    #: right one (docs/decisions/0125)
+    window_pairs = False
 
     def heat_rates_W(self, ctx):
         # tau is the time constant of the air temperature at constant volume:
