@@ -252,7 +252,7 @@ class Diagnosis:
         route, ranked, variants, measure = self._screen(run, candidates, signatures)         # 4. screen
         t_screen = time.perf_counter() - t_started
         run.on_top = _on_top(candidates, variants)
-        joint = self._joint(run, name) if route == "from the data sheet" else None           # 5. jointly, or
+        joint = self._joint(run, name, budget) if route == "from the data sheet" else None   # 5. jointly, or
         if joint is not None:
             findings, final = joint
             kept = [f.effect for f in findings]
@@ -316,7 +316,7 @@ class Diagnosis:
         findings, final = run.stages.more_findings(run, findings, final)
         return findings, final, len(findings) > n_before
 
-    def _joint(self, run: DiagnosisRun, name: str):
+    def _joint(self, run: DiagnosisRun, name: str, budget: Budget | None = None):
         """5, where no effect alone explains the screening's window: sets of the window's leading effects pre-fitted
         together there (:func:`.window_sets.search_sets`); where the best is a set of two or more, it is fitted
         whole and kept against the nominal model (:func:`.window_sets.fit_set`), each member is tested with the
@@ -335,7 +335,13 @@ class Diagnosis:
                        else max(run.max_findings, MAX_FINDINGS_SEVERAL))
         self._say(name, "no effect alone explains the mismatch window: sets of the leading effects pre-fitted "
                         "together there")
+        used = budget.used() if budget is not None else 0.0
         run.window_sets = search_sets(run, window.singles, window.options, max_effects)
+        if budget is not None:
+            # pre-fits that choose no pair are not charged to the one-effect-first search after them: it keeps
+            # the budget it has without this step (a pair fitted whole is charged)
+            refund = budget.used() - used
+            budget.seconds += refund
         best = run.window_sets[0] if run.window_sets else None
         if best is None or len(best.candidates) < 2:
             return None
@@ -355,6 +361,8 @@ class Diagnosis:
             return None
         self._say(name, f"the set that explains the window best: {best.label} "
                         f"({best.normalised_objective:.3g} times noise there)")
+        if budget is not None:
+            budget.seconds -= refund
         out = fit_set(run, best, window.base.normalised_objective)
         if out is None or not out[2]:
             return None

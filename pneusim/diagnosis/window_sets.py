@@ -10,7 +10,8 @@ inherited by every later step.  Here the effects are fitted together instead, fi
 1. a transport delay, whose value has no gradient and was screened at a few values only, is first followed
    downhill on the window from its best screened value (:func:`refine_delay`): at a wrong value it loses the
    window to its look-alike, the spool lag, whose lag is a fitted parameter;
-2. the window's leading effects (:data:`~.rules.SET_LEADERS`, each by its best pre-fit alone) enter, each with
+2. the window's leading effects (:data:`~.rules.SET_LEADERS`, each by its best pre-fit alone; not an effect whose
+   ``window_pairs`` is False, heat transfer, whose free temperatures take up whatever else is missing) enter, each with
    every variant of its own physics (each leakage path: which path leaks is only seen with the others present;
    of a transport delay only its best value, a value and not a physics);
 3. every pair of leaders, each variant of each, is pre-fitted together from the data sheet on the window
