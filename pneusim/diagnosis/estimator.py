@@ -316,6 +316,29 @@ class Diagnosis:
         findings, final = run.stages.more_findings(run, findings, final)
         return findings, final, len(findings) > n_before
 
+    def _pair_to_fit(self, window_sets: list, name: str):
+        """The best of ``window_sets`` where it is a set of two or more that brings the window within
+        :data:`~.rules.SET_EXPLAINS_WINDOW` times noise and below :data:`~.rules.SET_SHRINK` of the best single
+        effect's objective (its ``outcome`` says why where it is not); else None."""
+        best = window_sets[0] if window_sets else None
+        if best is None or len(best.candidates) < 2:
+            return None
+        if best.normalised_objective > SET_EXPLAINS_WINDOW:
+            best.outcome = (f"not fitted: leaves the window {best.normalised_objective:.3g} times noise, above "
+                            f"{SET_EXPLAINS_WINDOW:g}")
+            self._say(name, f"the best set, {best.label}, leaves the window {best.normalised_objective:.3g} times "
+                            f"noise (above {SET_EXPLAINS_WINDOW:g}): too little explained to choose the physics there")
+            return None
+        single = min((w for w in window_sets if len(w.candidates) == 1), default=None,
+                     key=lambda w: w.normalised_objective)
+        if single is not None and best.normalised_objective > SET_SHRINK * single.normalised_objective:
+            best.outcome = (f"not fitted: {best.normalised_objective:.3g} times noise on the window, not {SET_SHRINK:g} "
+                            f"of the best single effect's ({single.label}, {single.normalised_objective:.3g})")
+            self._say(name, f"the best set, {best.label}, ends a hair below {single.label} alone on the window: "
+                            f"one effect first")
+            return None
+        return best
+
     def _joint(self, run: DiagnosisRun, name: str, budget: Budget | None = None):
         """5, where no effect alone explains the screening's window: sets of the window's leading effects pre-fitted
         together there (:func:`.window_sets.search_sets`); where the best is a set of two or more, it is fitted
@@ -337,32 +360,15 @@ class Diagnosis:
                         "together there")
         used = budget.used() if budget is not None else 0.0
         run.window_sets = search_sets(run, window.singles, window.options, max_effects)
-        if budget is not None:
-            # pre-fits that choose no pair are not charged to the one-effect-first search after them: it keeps
-            # the budget it has without this step (a pair fitted whole is charged)
-            refund = budget.used() - used
-            budget.seconds += refund
-        best = run.window_sets[0] if run.window_sets else None
-        if best is None or len(best.candidates) < 2:
-            return None
-        if best.normalised_objective > SET_EXPLAINS_WINDOW:
-            best.outcome = (f"not fitted: leaves the window {best.normalised_objective:.3g} times noise, above "
-                            f"{SET_EXPLAINS_WINDOW:g}")
-            self._say(name, f"the best set, {best.label}, leaves the window {best.normalised_objective:.3g} times "
-                            f"noise (above {SET_EXPLAINS_WINDOW:g}): too little explained to choose the physics there")
-            return None
-        single = min((w for w in run.window_sets if len(w.candidates) == 1), default=None,
-                     key=lambda w: w.normalised_objective)
-        if single is not None and best.normalised_objective > SET_SHRINK * single.normalised_objective:
-            best.outcome = (f"not fitted: {best.normalised_objective:.3g} times noise on the window, not {SET_SHRINK:g} "
-                            f"of the best single effect's ({single.label}, {single.normalised_objective:.3g})")
-            self._say(name, f"the best set, {best.label}, ends a hair below {single.label} alone on the window: "
-                            f"one effect first")
+        best = self._pair_to_fit(run.window_sets, name)
+        if best is None:
+            if budget is not None:
+                # pre-fits that choose no pair are not charged to the one-effect-first search after them: it keeps
+                # the budget it has without this step (a pair fitted whole is charged)
+                budget.seconds += budget.used() - used
             return None
         self._say(name, f"the set that explains the window best: {best.label} "
                         f"({best.normalised_objective:.3g} times noise there)")
-        if budget is not None:
-            budget.seconds -= refund
         out = fit_set(run, best, window.base.normalised_objective)
         if out is None or not out[2]:
             return None
