@@ -295,6 +295,7 @@ class Diagnosis:
                     "refits_s": time.perf_counter() - started - t_nominal - t_screen,
                     "first_finding_s": t_first - t_started - t_screen, "on_top_s": t_on_top - t_first,
                     "drop_one_s": t_drop_one - t_on_top,
+                    "window_sets_s": run.window_sets_s,           # part of first_finding_s: the sets' pre-fits
                     "cpu_s": time.process_time() - cpu_started,    # this process's: both fit threads
                     "budget_s": budget.used()},                    # the work counted, in the budget's seconds
             window_sets=[w.to_dict() for w in run.window_sets],
@@ -358,8 +359,9 @@ class Diagnosis:
                        else max(run.max_findings, MAX_FINDINGS_SEVERAL))
         self._say(name, "no effect alone explains the mismatch window: sets of the leading effects pre-fitted "
                         "together there")
-        used = budget.used() if budget is not None else 0.0
+        used, started = (budget.used() if budget is not None else 0.0), time.perf_counter()
         run.window_sets = search_sets(run, window.singles, window.options, max_effects)
+        run.window_sets_s = time.perf_counter() - started
         best = self._pair_to_fit(run.window_sets, name)
         if best is None:
             if budget is not None:

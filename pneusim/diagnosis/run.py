@@ -77,6 +77,8 @@ class DiagnosisRun:
         every candidate's pre-fit alone (None where the screening ran around the nominal fit).
     window_sets : list
         The sets of effects pre-fitted together on that window (:mod:`.window_sets`), best first.
+    window_sets_s : float
+        Wall seconds the pre-fits of those sets took (0 where none were pre-fitted).
     contributions : dict
         ``{effect: points}``: the validation fit each finding adds with all the others present, from the last
         drop-one test (:func:`.findings.drop_one`).
@@ -100,6 +102,7 @@ class DiagnosisRun:
     refitted_on_top: set = field(default_factory=set)
     window: object = None
     window_sets: list = field(default_factory=list)
+    window_sets_s: float = 0.0
     contributions: dict = field(default_factory=dict)
 
     @property
