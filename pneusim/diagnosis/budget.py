@@ -20,6 +20,7 @@ it did.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import math
@@ -48,6 +49,8 @@ class Budget:
         self.started, self.cpu_started = work.done(), time.process_time()
         #: the first step refused and why (None: none was refused)
         self.stopped: str | None = None
+        #: seconds of the budget (used) at which the step running in a :meth:`share` block must end (None: none)
+        self.share_ends: float | None = None
 
     def used(self) -> float:
         """Seconds of the budget used so far: the work done since construction, at the reference rate."""
@@ -58,9 +61,25 @@ class Budget:
         return self.seconds - self.used()
 
     def deadline(self):
-        """A :func:`pneusim.fit.deadline.work_deadline` block at the budget's end, with its backstop."""
-        return work_deadline(self.started + self.seconds * WORK_UNITS_PER_S,
-                             self.cpu_started + BUDGET_BACKSTOP * self.seconds)
+        """A :func:`pneusim.fit.deadline.work_deadline` block at the budget's end (or the end of the running
+        :meth:`share`, where that is earlier), with its backstop."""
+        end = self.seconds if self.share_ends is None else min(self.seconds, self.share_ends)
+        return work_deadline(self.started + end * WORK_UNITS_PER_S, self.cpu_started + BUDGET_BACKSTOP * self.seconds)
+
+    @contextlib.contextmanager
+    def share(self, fraction: float):
+        """Within the block, a step may use at most ``fraction`` of the budget left at its start: one that runs
+        to the end of its share is stopped there (:func:`gated_stages` raises :class:`TimeBudgetExhausted`) without
+        stopping the budget, and what is left stays for the steps after the block."""
+        self.share_ends = self.used() + fraction * max(self.left(), 0.0)
+        try:
+            yield
+        finally:
+            self.share_ends = None
+
+    def share_binds(self) -> bool:
+        """Whether a running :meth:`share` ends before the budget does (a step stopped now met its share's end)."""
+        return self.share_ends is not None and self.share_ends < self.seconds
 
     def check(self, step: str, cost_s: float) -> None:
         """Raise :class:`TimeBudgetExhausted` where ``step``, expected to cost ``cost_s`` seconds of the budget,
@@ -108,6 +127,10 @@ def gated_stages(stages, budget: Budget, fit_cost_s: float):
                     if not deadline.reached:
                         raise
                     out = None
+            if deadline.reached and budget.share_binds() and not deadline.by_backstop:
+                raise TimeBudgetExhausted(f"stopped: {step} ran to the end of its share of the time budget "
+                                          f"({budget.share_ends:.0f} of {budget.seconds:.0f} s); the rest is left "
+                                          "for the steps after it")
             if deadline.reached:
                 budget.stop(f"{step} ran to the end of the {budget.seconds:.0f} s time budget and was stopped"
                             + (" (by its processor-time backstop)" if deadline.by_backstop else ""))

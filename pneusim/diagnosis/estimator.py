@@ -49,6 +49,7 @@ steps call; a step reads and writes one :class:`~.run.DiagnosisRun`.  The thresh
 
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
 import time
@@ -75,7 +76,7 @@ from .other import above_noise, other_finding
 from .refits import estimation_cost, fit_from_data_sheet, fit_nominal, noise_levels, refit
 from .result import DiagnosisResult
 from .rules import (AT_NOISE_ON_WINDOW, MAX_FINDINGS, MAX_FINDINGS_SEVERAL, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, MODEL_SHORT,
-                    SCREEN_SAMPLES, SET_EXPLAINS_WINDOW, SET_SHRINK, TIME_BUDGET_S, VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE,
+                    SCREEN_SAMPLES, SET_EXPLAINS_WINDOW, SET_FIT_SHARE, SET_SHRINK, TIME_BUDGET_S, VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE,
                     VALIDATION_MOTION_NOISE, WINDOW_SAMPLES,
                     default_budget_s, keep_test_text, noise_floor_points, passes_test, screening_route,
                     validation_room)
@@ -294,8 +295,7 @@ class Diagnosis:
             timing={"nominal_fit_s": t_nominal, "screening_s": t_screen,
                     "refits_s": time.perf_counter() - started - t_nominal - t_screen,
                     "first_finding_s": t_first - t_started - t_screen, "on_top_s": t_on_top - t_first,
-                    "drop_one_s": t_drop_one - t_on_top,
-                    "window_sets_s": run.window_sets_s,           # part of first_finding_s: the sets' pre-fits
+                    "drop_one_s": t_drop_one - t_on_top, "window_sets_s": run.window_sets_s,   # within first_finding_s
                     "cpu_s": time.process_time() - cpu_started,    # this process's: both fit threads
                     "budget_s": budget.used()},                    # the work counted, in the budget's seconds
             window_sets=[w.to_dict() for w in run.window_sets],
@@ -349,7 +349,8 @@ class Diagnosis:
         fit)``, or None where the one-effect-first confirmation is to run instead (a single effect explains the
         window, the best set is a single effect, leaves the window above :data:`~.rules.SET_EXPLAINS_WINDOW` times
         noise or above :data:`~.rules.SET_SHRINK` of the best single effect's objective, or its whole fit failed the
-        keep test)."""
+        keep test or did not end within :data:`~.rules.SET_FIT_SHARE` of the budget left, the rest of which is
+        then the confirmation's)."""
         window = run.window
         singles = [pre for _, pre in (window.singles.values() if window else ()) if pre is not None]
         if not (window and window.shows_mismatch and singles
@@ -371,7 +372,8 @@ class Diagnosis:
             return None
         self._say(name, f"the set that explains the window best: {best.label} "
                         f"({best.normalised_objective:.3g} times noise there)")
-        out = fit_set(run, best, window.base.normalised_objective)
+        with budget.share(SET_FIT_SHARE) if budget is not None else contextlib.nullcontext():
+            out = fit_set(run, best, window.base.normalised_objective)
         if out is None or not out[2]:
             return None
         fit, _, _ = out

@@ -31,7 +31,7 @@ __all__ = [
     "SCREEN_SAMPLES", "SCREEN_EVALUATIONS", "SCANNED_EVALUATIONS", "DEFECT_WEIGHT", "DELAY_LAG_FACTORS",
     "DELAY_LAG_CORRELATION", "RELATIVE_SCORE", "MIN_EXPLAINED",
     "WINDOW_SAMPLES", "PREFIT_EVALUATIONS", "AT_NOISE_ON_WINDOW", "WINDOW_SHOWS_MISMATCH", "MAX_FITS", "EXPLAINED",
-    "RIVAL_WINDOW", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS", "SET_LEADERS", "WINDOW_DELAY_STEPS", "SET_EXPLAINS_WINDOW", "SET_SHRINK",
+    "RIVAL_WINDOW", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS", "SET_LEADERS", "WINDOW_DELAY_STEPS", "SET_EXPLAINS_WINDOW", "SET_SHRINK", "SET_FIT_SHARE",
     "MIN_IMPROVEMENT_POINTS", "ERROR_SHRINK", "CLEARLY_SHORT", "AT_NOISE", "PERFECT_ERROR",
     "DELAY_SCAN_ERROR_RATIO", "SCAN_FACTOR", "SCAN_REFITS", "DELAY_GRID_PER_SAMPLE", "MIN_DELAY_SAMPLES",
     "ON_TOP_REFITS", "OTHER_RESIDUAL", "FURTHER_SEARCH_RESIDUAL", "MAX_CLOSEST", "TIME_BUDGET_S", "WORK_UNITS_PER_S", "BUDGET_BACKSTOP", "BUDGET_NOMINAL_FITS", "default_budget_s", "COMMAND_MAP_SPAN", "COMMAND_MAP_BINS", "HOLDING_SPAN", "SETS_SHOWN",
@@ -146,6 +146,10 @@ SET_EXPLAINS_WINDOW = 10.0
 #: the keep test asks a refit to shrink the validation error (ERROR_SHRINK): the window's information criterion
 #: counts its residuals as independent, which they are not, and lets a second effect in for a hair
 SET_SHRINK = 0.9
+#: (fraction) the best set's whole fit may use at most this share of the time budget left when it starts: where it
+#: cannot finish there, the one-effect-first confirmation that follows still has the rest (a whole fit of a pair
+#: from the data sheet can take several times a single effect's, and one that ran to the budget's end left nothing)
+SET_FIT_SHARE = 0.5
 
 # -------------------------------------------------------------------------------------------- the keep test
 #: (points) a refit must raise the validation fit by more than max(this, F): less is within what a short

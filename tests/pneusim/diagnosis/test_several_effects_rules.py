@@ -327,6 +327,38 @@ def test_a_fit_that_runs_to_the_end_of_the_budget_is_stopped_and_its_result_not_
     deadline.check()                              # no deadline set: nothing happens
 
 
+def test_a_step_given_a_share_of_the_budget_stops_there_and_leaves_the_rest():
+    """A step run in ``Budget.share(f)`` (the best set's whole fit) stops where it has used ``f`` of the budget left
+    at its start, exactly, in model work; the budget is not stopped by it, and the steps after the block run
+    against the whole budget, up to its end (where the budget itself stops them)."""
+    from pneusim.diagnosis.budget import Budget, TimeBudgetExhausted, gated_stages
+    from pneusim.diagnosis.estimator import DiagnosisStages
+    from pneusim.diagnosis.rules import WORK_UNITS_PER_S
+    from pneusim.fit import deadline
+    from pneusim.solver import work
+
+    evaluations = []
+
+    def long_fit(*args, **kwargs):
+        while True:                                  # a fit's evaluations, each checking the deadline
+            deadline.check()
+            evaluations.append(work.done())
+            work.charge(1000)
+
+    budget = Budget(20.5 * 1000 / WORK_UNITS_PER_S)
+    gated = gated_stages(DiagnosisStages(fit=long_fit, refit=long_fit), budget, fit_cost_s=0.0)
+    with budget.share(0.5):
+        with pytest.raises(TimeBudgetExhausted, match="ran to the end of its share of the time budget"):
+            gated.fit()
+    assert len(evaluations) == 11                    # the 11th began at 10 of the 10.25 units of its share
+    assert budget.stopped is None and budget.status == "complete" and budget.share_ends is None
+    evaluations.clear()
+    with pytest.raises(TimeBudgetExhausted, match="ran to the end of the 0 s time budget and was stopped$"):
+        gated.refit()                                # after the block: on to the budget's own end
+    assert len(evaluations) == 10                    # from 11 to 20.5 units
+    assert budget.status.startswith("stopped by the time budget: the refit ran to the end")
+
+
 def test_mismatch_windows_merge_into_a_few_readable_episodes():
     """Windows closer than 2 % of the recording join one episode while it stays within 10 % of it; an
     episode is named by its strongest window (signal, condition), its other signals in ``also_in``; at most
