@@ -77,6 +77,11 @@ class Budget:
         finally:
             self.share_ends = None
 
+    def refund(self, since_used: float) -> None:
+        """Do not charge the work done since :meth:`used` was ``since_used``: the steps after keep the budget they
+        had without it."""
+        self.seconds += self.used() - since_used
+
     def share_binds(self) -> bool:
         """Whether a running :meth:`share` ends before the budget does (a step stopped now met its share's end)."""
         return self.share_ends is not None and self.share_ends < self.seconds

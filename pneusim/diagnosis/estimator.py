@@ -49,7 +49,6 @@ steps call; a step reads and writes one :class:`~.run.DiagnosisRun`.  The thresh
 
 from __future__ import annotations
 
-import contextlib
 import math
 import sys
 import time
@@ -333,8 +332,9 @@ class Diagnosis:
         single = min((w for w in window_sets if len(w.candidates) == 1), default=None,
                      key=lambda w: w.normalised_objective)
         if single is not None and best.normalised_objective > SET_SHRINK * single.normalised_objective:
-            best.outcome = (f"not fitted: {best.normalised_objective:.3g} times noise on the window, not {SET_SHRINK:g} "
-                            f"of the best single effect's ({single.label}, {single.normalised_objective:.3g})")
+            best.outcome = (f"not fitted: {best.normalised_objective:.3g} times noise on the window, not "
+                            f"{SET_SHRINK:g} of the best single effect's ({single.label}, "
+                            f"{single.normalised_objective:.3g})")
             self._say(name, f"the best set, {best.label}, ends a hair below {single.label} alone on the window: "
                             f"one effect first")
             return None
@@ -360,19 +360,19 @@ class Diagnosis:
                        else max(run.max_findings, MAX_FINDINGS_SEVERAL))
         self._say(name, "no effect alone explains the mismatch window: sets of the leading effects pre-fitted "
                         "together there")
-        used, started = (budget.used() if budget is not None else 0.0), time.perf_counter()
+        budget = budget if budget is not None else Budget()
+        used, started = budget.used(), time.perf_counter()
         run.window_sets = search_sets(run, window.singles, window.options, max_effects)
         run.window_sets_s = time.perf_counter() - started
         best = self._pair_to_fit(run.window_sets, name)
         if best is None:
-            if budget is not None:
-                # pre-fits that choose no pair are not charged to the one-effect-first search after them: it keeps
-                # the budget it has without this step (a pair fitted whole is charged)
-                budget.seconds += budget.used() - used
+            # pre-fits that choose no pair are not charged to the one-effect-first search after them (a pair fitted
+            # whole is charged)
+            budget.refund(used)
             return None
         self._say(name, f"the set that explains the window best: {best.label} "
                         f"({best.normalised_objective:.3g} times noise there)")
-        with budget.share(SET_FIT_SHARE) if budget is not None else contextlib.nullcontext():
+        with budget.share(SET_FIT_SHARE):
             out = fit_set(run, best, window.base.normalised_objective)
         if out is None or not out[2]:
             return None

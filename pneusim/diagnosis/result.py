@@ -161,7 +161,8 @@ class DiagnosisResult:
         ``first_finding_s`` (confirming the first round and the delay scan), ``on_top_s`` (the search on top of
         the findings) and ``drop_one_s``, and ``window_sets_s`` (within ``first_finding_s``: the pre-fits of the
         sets of effects on the mismatch window, :mod:`.window_sets`); ``cpu_s``: the diagnosis's processor time
-        (this process, both fit threads); ``budget_s``: the time budget it used (model work at the reference rate, :mod:`.budget`).
+        (this process, both fit threads); ``budget_s``: the time budget it used (model work at the reference rate,
+        :mod:`.budget`).
     window_sets : list of dict
         Where no effect alone explained the screening's window: the sets of effects pre-fitted together there
         (:mod:`.window_sets`), best first, each ``{"effects", "variants", "window_objective_normalised",
