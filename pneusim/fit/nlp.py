@@ -29,6 +29,7 @@ import numpy as np
 from scipy import sparse
 
 from ..errors import SolverError
+from .deadline import FitDeadlineExceeded
 from .rules import GN_DAMPING, IPOPT_OBJECTIVE_CHANGE
 from .shooting import ShootingProblem
 
@@ -169,6 +170,27 @@ class _Oracle(ca.Callback):
         return self._jacobian
 
     def eval(self, arg):
+        try:
+            return self._evaluate(arg)
+        except FitDeadlineExceeded:
+            # Raised here, CasADi would print the traceback and the whole input vector for this evaluation and
+            # for each one IPOPT retries; not-a-number outputs end IPOPT at once instead, and the deadline is
+            # raised to the caller by the evaluation of the point IPOPT returns (:func:`solve_ipopt`).
+            return self._not_a_number()
+
+    def _not_a_number(self):
+        nv, G, nan = self.pb.n_v, self.pb.n_constraints, np.nan
+        if self.kind == "values":
+            return [nan, ca.DM.nan(G, 1)]
+        if self.kind == "grad_f":
+            return [nan, ca.DM.nan(nv, 1)]
+        if self.kind == "jac_g":
+            return [ca.DM.nan(G, 1), ca.DM(self.sp_jg, nan)]
+        if self.kind == "values_jac":
+            return [ca.DM.nan(1, nv), ca.DM(self.sp_jg, nan)]
+        return [ca.DM(self.sp_h, nan)]
+
+    def _evaluate(self, arg):
         v = np.array(arg[0]).ravel()
         e = self.pb.evaluate(v, derivatives=self.kind != "values")
         f = 0.5 * float(np.dot(e["r"], e["r"])) / self.M
@@ -225,6 +247,7 @@ def solve_ipopt(problem: ShootingProblem, v0: np.ndarray, lower: np.ndarray, upp
         g = ca.MX(0, 1)
     opts = {"grad_f": oracles["grad_f"], "hess_lag": oracles["hess_lag"],
             "print_time": False, "calc_lam_p": False, "ipopt.print_level": print_level, "ipopt.sb": "yes",
+            "show_eval_warnings": False,     # a point the model cannot integrate is IPOPT's to step back from
             "ipopt.max_iter": int(max_iter), "ipopt.tol": 1e-10, "ipopt.constr_viol_tol": defect_tol,
             "ipopt.acceptable_tol": 1e20, "ipopt.acceptable_dual_inf_tol": 1e20,
             "ipopt.acceptable_constr_viol_tol": 10 * defect_tol,

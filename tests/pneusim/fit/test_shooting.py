@@ -245,3 +245,29 @@ def test_the_filter_holds_the_states_a_recording_does_not_measure(window, rig2):
                     "temperature_a_K": 0.01, "temperature_b_K": 0.01}
         expected.update({name: 0.01 for name in unmeasured})
         assert dict(zip(model.state_names, held)) == pytest.approx(expected)
+
+
+def test_ipopt_stopped_by_a_callers_deadline_raises_it_once_and_prints_nothing(window, capfd):
+    """An IPOPT solve that meets a caller's work deadline mid-way ends there and raises
+    :class:`~pneusim.fit.deadline.FitDeadlineExceeded` to the caller, as every other route does; the solver's
+    callbacks do not let the error through CasADi, which would print its traceback and the whole point for every
+    evaluation IPOPT retried (hundreds of kilobytes on a terminal).  Without a deadline the same solve runs to
+    its end."""
+    from pneusim.fit import deadline
+    from pneusim.fit.nlp import solve_ipopt
+    from pneusim.solver import work
+
+    pb, _, v, _ = window
+    lower, upper = np.full(v.size, -np.inf), np.full(v.size, np.inf)
+    lower[:pb.n_free], upper[:pb.n_free] = 0.2, 5.0
+    before = work.done()
+    whole = solve_ipopt(pb, v, lower, upper, max_iter=8)
+    units = work.done() - before
+    assert whole.iterations > 2 and np.isfinite(whole.objective)
+    capfd.readouterr()
+    with deadline.work_deadline(work.done() + 0.5 * units) as block:
+        with pytest.raises(deadline.FitDeadlineExceeded):
+            solve_ipopt(pb, v, lower, upper, max_iter=8)
+    assert block.reached
+    out, err = capfd.readouterr()
+    assert "Traceback" not in err and "Traceback" not in out and len(err) + len(out) == 0
