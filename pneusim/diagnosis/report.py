@@ -158,7 +158,8 @@ def _verdict_lines(result: DiagnosisResult) -> list:
     named = [f for f in result.findings if f.effect != "other"]
     other = next((f for f in result.findings if f.effect == "other"), None)
     if not result.findings:
-        lines.append("**Nothing is missing**: no vocabulary effect improved the held-out fit by more than noise explains.")
+        verdict, because = result.no_findings.split(": ", 1)
+        lines.append(f"**{verdict[0].upper()}{verdict[1:]}**: {because}.")
     if named:
         lines.append("**Physics left out**, most important first: " + ", ".join(f"`{f.effect}`" for f in named) + ".")
     if other is not None:

@@ -135,7 +135,8 @@ class DiagnosisResult:
         ``fit_percent`` (validation fit of the fitted nominal model, %) and ``parameters`` (fitted values, SI).
     mismatch : list of MismatchWindow
     findings : list of Finding
-        Ranked, most important first; empty when nothing is missing.
+        Ranked, most important first; empty when nothing is missing, or when the time budget stopped the search
+        before anything passed the test (``status`` then says so, and :attr:`no_findings` in words).
     final_fit_percent : float
         Validation fit with every kept finding modelled, %.
     candidates : list of CandidateTrial
@@ -197,6 +198,15 @@ class DiagnosisResult:
         """Names of the findings, ranked."""
         return [f.effect for f in self.findings]
 
+    @property
+    def no_findings(self) -> str:
+        """What an empty ``findings`` means, in words: "nothing is missing" only where the search ran to its
+        end; where the time budget stopped it first, that nothing is known (the model may still be far off)."""
+        if self.status == "complete":
+            return "nothing is missing: no vocabulary effect improved the held-out fit by more than noise explains"
+        return (f"not known whether something is missing: the time budget stopped the search before any "
+                f"vocabulary effect passed the test (validation fit {self.final_fit_percent:.2f} % without one)")
+
     def to_dict(self) -> dict:
         """The JSON result of ``diagnosis.md``, plus ``candidates`` (every candidate screened, the refits and
         their test outcome, failures included), ``test`` (the keep rule in words) and ``timing`` (s)."""
@@ -235,7 +245,7 @@ class DiagnosisResult:
         else:
             lines.append("no residual window beyond the sensor noise")
         if not self.findings:
-            lines.append("findings: none - nothing is missing (no candidate passed the test)")
+            lines.append(f"findings: none - {self.no_findings}")
         for k, f in enumerate(self.findings, 1):
             params = ", ".join(f"{n} = {v:.4g}" if not isinstance(v, str) else f"{n} = {v}"
                                for n, v in f.parameters.items())

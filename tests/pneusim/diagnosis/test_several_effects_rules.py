@@ -378,3 +378,23 @@ def test_mismatch_windows_merge_into_a_few_readable_episodes():
     assert len(merged) == MAX_EPISODES and all(w.t_end_s - w.t_start_s <= 10.0 for w in merged)
     assert any(w.t_start_s <= 47.0 < w.t_end_s for w in merged)           # the strongest window's episode
     assert [w.t_start_s for w in merged] == sorted(w.t_start_s for w in merged)
+
+
+def test_no_finding_says_nothing_is_missing_only_where_the_search_ran_to_its_end():
+    """Empty findings mean "nothing is missing" where every candidate was tested; where the time budget stopped
+    the search first, the terminal summary and the report say that it is not known, and the fit it ended at."""
+    from pneusim.diagnosis.report import _verdict_lines
+    from pneusim.diagnosis.result import DiagnosisResult
+
+    def result(status):
+        return DiagnosisResult(recording="run.csv", rig="paper2-enfield", validation={},
+                               nominal={"fit_percent": -308.5}, mismatch=[], findings=[], final_fit_percent=-308.5,
+                               status=status)
+
+    complete = result("complete")
+    assert "nothing is missing" in complete.summary()
+    assert any(line.startswith("**Nothing is missing**") for line in _verdict_lines(complete))
+    stopped = result("stopped by the time budget: the prefit ran to the end of the 40 s time budget and was stopped")
+    for text in (stopped.summary(), "\n".join(_verdict_lines(stopped))):
+        assert "nothing is missing" not in text.lower()
+        assert "not known whether something is missing" in text.lower() and "-308.50 %" in text
