@@ -12,6 +12,7 @@ import time
 from ..model.effects import EFFECTS
 from .candidates import family_of
 from .from_data_sheet import data_sheet_start
+from .other import unexplained
 from .refits import effect_at_screened, effect_parameters, estimation_cost
 from .result import CandidateTrial, Finding
 from .rules import MIN_EXPLAINED, MODEL_SHORT, ON_TOP_REFITS, bic_penalty, is_solver_failure
@@ -86,17 +87,24 @@ def _trial_of(run, c):
 
 def _one_more(run, findings: list, final, pool: dict) -> tuple[bool, object]:
     """Screen ``pool`` on top of ``final`` and refit the candidates that explain most there, at most
-    :data:`~.rules.ON_TOP_REFITS`; the first that passes becomes a finding.  Returns ``(added, final)``;
-    ``pool`` loses the candidates refitted and, once one is kept, every variant of its effect."""
+    :data:`~.rules.ON_TOP_REFITS`, or every one that explains at least :data:`~.rules.MIN_EXPLAINED` there while
+    ``final`` leaves physics unexplained (:func:`.other.unexplained`); the first that passes becomes a finding.
+    Returns ``(added, final)``; ``pool`` loses the candidates refitted and, once one is kept, every variant of
+    its effect.
+
+    Why more while unexplained: the search ending here is what lets a diagnosis say ``other``, "no vocabulary
+    effect passes the test on top of the findings", and that is only true of the candidates tested; the cap
+    saves time where the findings are near noise and a further effect would be a detail, not where the model
+    is still far off (``docs/decisions/0127``)."""
     names = ", ".join(f.effect for f in findings)
     base_top, scores = _screen_on_top(run, final, pool)
-    for _ in range(ON_TOP_REFITS):
-        if not pool:
-            break
+    refitted = 0
+    while pool and (refitted < ON_TOP_REFITS or unexplained(final, run.noise, run.baseline.floor)[0]):
         key = max(pool, key=lambda k: scores[k][1])
         gain, score_top, _ = scores[key]
         if math.isfinite(gain) and not score_top > MIN_EXPLAINED * base_top:
             break
+        refitted += 1
         c = pool.pop(key)
         run.refitted_on_top.update({key, c.label})    # the first round's pools key by effect, run.on_top by label
         screened = f" (screening explains {gain:.0f} of {base_top:.0f} there)" if math.isfinite(gain) else ""
@@ -127,7 +135,8 @@ def _one_more(run, findings: list, final, pool: dict) -> tuple[bool, object]:
                 continue
             trial.status += (f"; not refitted on top of {names}: its screening explains {gain:.0f} of "
                              f"{base_top:.0f} there (at most {ON_TOP_REFITS} are refitted on top, those that "
-                             f"explain most and at least {MIN_EXPLAINED:g} of it)")
+                             f"explain most and at least {MIN_EXPLAINED:g} of it; more only while the findings "
+                             "leave physics unexplained)")
     return False, final
 
 

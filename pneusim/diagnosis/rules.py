@@ -181,7 +181,8 @@ MIN_DELAY_SAMPLES = 0.5
 
 # --------------------------------------------------------------------------------------- findings and other
 #: (refits) at most this many candidates are refitted on top of each set of findings, those whose screening explains
-#: most there first: far from noise nearly every candidate passes the test against the nominal model alone
+#: most there first, unless the findings leave physics unexplained (then every one explaining MIN_EXPLAINED there,
+#: before ``other`` is said): near noise a further effect is a detail
 ON_TOP_REFITS = 2
 #: (normalised residual) with nothing kept, a nominal residual above this (the residuals alone, not the
 #: continuity defects a penalty fit left open) in mismatch windows is reported as ``other``
