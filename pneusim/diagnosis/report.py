@@ -158,7 +158,7 @@ def _verdict_lines(result: DiagnosisResult) -> list:
     named = [f for f in result.findings if f.effect != "other"]
     other = next((f for f in result.findings if f.effect == "other"), None)
     if not result.findings:
-        verdict, because = result.no_findings.split(": ", 1)
+        verdict, because = result.no_findings
         lines.append(f"**{verdict[0].upper()}{verdict[1:]}**: {because}.")
     if named:
         lines.append("**Physics left out**, most important first: " + ", ".join(f"`{f.effect}`" for f in named) + ".")

@@ -199,12 +199,13 @@ class DiagnosisResult:
         return [f.effect for f in self.findings]
 
     @property
-    def no_findings(self) -> str:
-        """What an empty ``findings`` means, in words: "nothing is missing" only where the search ran to its
-        end; where the time budget stopped it first, that nothing is known (the model may still be far off)."""
+    def no_findings(self) -> tuple[str, str]:
+        """What an empty ``findings`` means, ``(verdict, because)`` in words: "nothing is missing" only where the
+        search ran to its end; where the time budget stopped it first, that nothing is known (the model may still
+        be far off)."""
         if self.status == "complete":
-            return "nothing is missing: no vocabulary effect improved the held-out fit by more than noise explains"
-        return (f"not known whether something is missing: the time budget stopped the search before any "
+            return "nothing is missing", "no vocabulary effect improved the held-out fit by more than noise explains"
+        return ("not known whether something is missing", f"the time budget stopped the search before any "
                 f"vocabulary effect passed the test (validation fit {self.final_fit_percent:.2f} % without one)")
 
     def to_dict(self) -> dict:
@@ -245,7 +246,7 @@ class DiagnosisResult:
         else:
             lines.append("no residual window beyond the sensor noise")
         if not self.findings:
-            lines.append(f"findings: none - {self.no_findings}")
+            lines.append("findings: none - {}: {}".format(*self.no_findings))
         for k, f in enumerate(self.findings, 1):
             params = ", ".join(f"{n} = {v:.4g}" if not isinstance(v, str) else f"{n} = {v}"
                                for n, v in f.parameters.items())

@@ -179,16 +179,8 @@ class _Oracle(ca.Callback):
             return self._not_a_number()
 
     def _not_a_number(self):
-        nv, G, nan = self.pb.n_v, self.pb.n_constraints, np.nan
-        if self.kind == "values":
-            return [nan, ca.DM.nan(G, 1)]
-        if self.kind == "grad_f":
-            return [nan, ca.DM.nan(nv, 1)]
-        if self.kind == "jac_g":
-            return [ca.DM.nan(G, 1), ca.DM(self.sp_jg, nan)]
-        if self.kind == "values_jac":
-            return [ca.DM.nan(1, nv), ca.DM(self.sp_jg, nan)]
-        return [ca.DM(self.sp_h, nan)]
+        """Every output, of its own sparsity (:meth:`get_sparsity_out`), filled with not-a-number."""
+        return [ca.DM(self.get_sparsity_out(i), np.nan) for i in range(self.get_n_out())]
 
     def _evaluate(self, arg):
         v = np.array(arg[0]).ravel()
