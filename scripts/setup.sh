@@ -32,10 +32,18 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   SUNDIALS_INST=/usr .venv/bin/python -m pip install -q "scikits.odes>=2.7,<2.8"
   # our own extension cimports scikits.odes' declarations, so it builds without isolation
   .venv/bin/python -m pip install -q "cython>=3" "setuptools>=77" numpy
-  # --no-compile: Python compiles the modules it imports anyway; compiling every installed file up front
-  # costs a minute of the setup (docs/decisions/0052-setup-build-time.md)
+  # --no-compile: pip compiles one file after the other (a minute); the modules are compiled side by side below
   .venv/bin/python -m pip install -q --no-compile --no-build-isolation -e ".[test]"
   echo "$want" > "$stamp"
+fi
+# byte-compile the installed modules once, side by side: where PYTHONDONTWRITEBYTECODE is set (containers and
+# CI images set it) Python never writes them, and every process compiled each module it imported again, about
+# 0.45 s a start (docs/decisions/0128-byte-compile-once-at-setup.md)
+compiled=.venv/.pneusim-compiled
+if [ ! -f "$compiled" ] || [ "$(cat "$compiled")" != "$want" ]; then
+  echo "setup: byte-compiling the installed modules"
+  .venv/bin/python -m compileall -q -j 0 .venv/lib pneusim sysid >/dev/null
+  echo "$want" > "$compiled"
 fi
 .venv/bin/python -c "import pneusim, sysid, scikits.odes.ode" || { echo "setup: import check failed" >&2; exit 1; }
 echo "setup: ready (.venv)"
