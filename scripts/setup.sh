@@ -32,20 +32,14 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   SUNDIALS_INST=/usr .venv/bin/python -m pip install -q "scikits.odes>=2.7,<2.8"
   # our own extension cimports scikits.odes' declarations, so it builds without isolation
   .venv/bin/python -m pip install -q "cython>=3" "setuptools>=77" numpy
-  # --no-compile: pip compiles one file after the other (a minute); the modules are compiled side by side below
+  # --no-compile: pip compiles one file after the other (a minute); compileall does it side by side.  Compiled once
+  # here because where PYTHONDONTWRITEBYTECODE is set (containers and CI images set it) Python never writes them, and
+  # every process compiled each module it imported again, about 0.45 s a start (docs/decisions/0128). Only a
+  # speed-up: a file that does not compile (a dependency's file for another Python) is read as source.
   .venv/bin/python -m pip install -q --no-compile --no-build-isolation -e ".[test]"
-  echo "$want" > "$stamp"
-fi
-# byte-compile the installed modules once, side by side: where PYTHONDONTWRITEBYTECODE is set (containers and
-# CI images set it) Python never writes them, and every process compiled each module it imported again, about
-# 0.45 s a start (docs/decisions/0128-byte-compile-once-at-setup.md)
-compiled=.venv/.pneusim-compiled
-if [ ! -f "$compiled" ] || [ "$(cat "$compiled")" != "$want" ]; then
-  echo "setup: byte-compiling the installed modules"
-  # only a speed-up: a file that does not compile (a dependency's file for another Python) is compiled on import
   .venv/bin/python -m compileall -q -j 0 .venv/lib pneusim sysid >/dev/null \
     || echo "setup: some installed files could not be byte-compiled; Python reads them as source (slower starts)"
-  echo "$want" > "$compiled"
+  echo "$want" > "$stamp"
 fi
 .venv/bin/python -c "import pneusim, sysid, scikits.odes.ode" || { echo "setup: import check failed" >&2; exit 1; }
 echo "setup: ready (.venv)"
