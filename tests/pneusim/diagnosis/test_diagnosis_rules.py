@@ -327,3 +327,52 @@ def test_second_effect_stands_where_the_first_had_not_stopped_short():
     asymmetry, the load refitted alone at 98.91 % against 99.35 % with both, 0.06 points short of 0.50)."""
     needed, new_final, final, findings = _second_effect_with_stand_ins(3.2, 99.8)
     assert needed and new_final is final and findings[0].fit_percent == 94.5
+
+
+def _grown_with_stand_ins(before_rms: float, warm: tuple, sheet: tuple, warm_start: bool = True):
+    """:func:`_grown_from_data_sheet` on stand-in fits: a spool lag and a load fitted at ``before_rms`` (noise units),
+    a leak grown on top warm from them ending at ``warm`` = (rms, validation %), the three from the data sheet at
+    ``sheet``.  Returns the fit kept, the fits from the data sheet asked for (their effects) and the leak's trial."""
+    from pneusim.diagnosis.findings import _grown_from_data_sheet
+
+    n = 1000
+    asked = []
+
+    def stand_in_fit(recording, rig, effects, validation_fraction, start_values=None):
+        asked.append([e.name for e in effects])
+        return StandInFit(*sheet, effects, n=n)
+
+    pair = [make_effect("valve_dynamics"), make_effect("external_load")]
+    before = StandInFit(before_rms, -200.0, pair, n=n)
+    grown = StandInFit(*warm, pair + [make_effect("leakage")], n=n)
+    grown.solver = {"warm_start": warm_start}
+    trials = {"leakage": CandidateTrial("leakage", 1.0, "ev", status="kept")}
+    run = stand_in_run(NominalBaseline(NOISE, 30.0 ** 2 * n, n, -500.0, 0.2, 0.3, None), trials=trials,
+                       fit=stand_in_fit)
+    leak = Candidate("leakage", "leakage", make_effect("leakage"), [])
+    kept, cost = _grown_from_data_sheet(run, before, leak, grown, warm[0] ** 2 * n)
+    assert cost == pytest.approx(kept.rms ** 2 * n)
+    return kept, grown, asked, trials["leakage"]
+
+
+def test_a_set_grown_on_a_fit_far_above_noise_is_fitted_again_from_the_data_sheet():
+    """A set grown by one effect, warm from a fit that ended more than MODEL_SHORT times above the noise, that
+    still leaves physics unexplained is fitted again from the data sheet, and the lower on the estimation part is
+    the findings' fit from there on (practice3_28, a spool lag and a load at -200 %, a leak on top warm at
+    -101 %: the three from the data sheet reach the noise, 91 %).  Not tried where the fit it grew from was near
+    the noise, where the grown set explains the recording, or where the grown set already came from the data
+    sheet."""
+    from pneusim.diagnosis.rules import MODEL_SHORT
+
+    far = 2 * MODEL_SHORT
+    kept, grown, asked, trial = _grown_with_stand_ins(far, (8.0, -100.0), (1.1, 91.0))
+    assert asked == [["valve_dynamics", "external_load", "leakage"]] and kept is not grown
+    assert kept.fit_percent == 91.0 and "fitted from the data sheet ends lower" in trial.status
+    # the data sheet's fit ends higher: the warm refit stays, and the status says so
+    kept, grown, asked, trial = _grown_with_stand_ins(far, (8.0, -100.0), (9.0, -150.0))
+    assert len(asked) == 1 and kept is grown and "the warm refit stays" in trial.status
+    # not tried: the fit it grew from near the noise; the grown set at noise; the grown set from the data sheet
+    for before_rms, warm, warm_start in ((0.8 * MODEL_SHORT, (8.0, -100.0), True), (far, (1.0, 99.5), True),
+                                         (far, (8.0, -100.0), False)):
+        kept, grown, asked, trial = _grown_with_stand_ins(before_rms, warm, (1.1, 91.0), warm_start)
+        assert asked == [] and kept is grown and "data sheet" not in trial.status
