@@ -427,7 +427,7 @@ class Diagnosis:
         the data sheet's window)."""
         basis = run.baseline
         room = validation_room(basis.fit0, basis.floor)
-        rms_ratio = math.sqrt(basis.cost0 / max(basis.n_residuals, 1))
+        rms_ratio = basis.rms(basis.cost0)
         route = screening_route(room, rms_ratio)
         if route == "none":
             run.say(f"the nominal validation error {100 - basis.fit0:.3g} points is within the keep test's reach of "

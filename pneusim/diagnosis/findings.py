@@ -228,7 +228,7 @@ def _refit_on_top(run, first: str, final, c, screened: str, screening: dict | No
     ok, _, reason = run.stages.keep_test(c_prev, c2, basis.n_residuals, c.n_added, final.fit_percent,
                                          fit2.fit_percent, basis.floor)
     trial.status += f"; on top of {first}{screened}: {reason}"
-    if not ok and _far_above_noise(run, c_prev):
+    if not ok and basis.rms(c_prev) > MODEL_SHORT:
         both = _on_top_from_data_sheet(run, final, c, trial, from_sheet)
         if both is not None:
             fit2, c2 = both
@@ -275,7 +275,7 @@ def _grown_from_data_sheet(run, before, c, fit2, cost2: float):
     chain ends far above it (``docs/decisions/0130``)."""
     if not fit2.solver.get("warm_start"):
         return fit2, cost2      # already fitted from the data sheet (the warm refit had failed the test)
-    if not (_far_above_noise(run, estimation_cost(before, run.noise)[0])
+    if not (run.baseline.rms(estimation_cost(before, run.noise)[0]) > MODEL_SHORT
             and unexplained(fit2, run.noise, run.baseline.floor)[0]):
         return fit2, cost2
     trial = run.trials[c.name]
@@ -292,12 +292,6 @@ def _grown_from_data_sheet(run, before, c, fit2, cost2: float):
                      f"({cost_sheet:.0f} >= {cost2:.0f}; validation {from_sheet.fit_percent:.2f} %): the warm "
                      "refit stays")
     return fit2, cost2
-
-
-def _far_above_noise(run, cost: float) -> bool:
-    """Whether a fit of estimation cost ``cost`` ends more than :data:`~.rules.MODEL_SHORT` times above the noise
-    (rms over the nominal fit's residual count): its nominal parameters have bent for physics still missing."""
-    return math.sqrt(cost / max(run.baseline.n_residuals, 1)) > MODEL_SHORT
 
 
 def _second_effect_needed(run, final, cost_final: float, fit2, cost2: float, eff: str, n_added: int,

@@ -158,7 +158,7 @@ class _WholeFits:
         """The lowest estimation residual rms (noise units) of the kept fits; infinity when none is kept."""
         run = self.run
         costs = [estimation_cost(run.refits[k][0], run.noise)[0] for k in run.refits if run.trials[k].kept]
-        return math.sqrt(min(costs) / max(run.baseline.n_residuals, 1)) if costs else math.inf
+        return run.baseline.rms(min(costs)) if costs else math.inf
 
     def outclassed(self, eff: str) -> str:
         """Why ``eff`` is not fitted whole: its pre-fit on the window ends more than :data:`~.rules.RIVAL_WINDOW`

@@ -12,6 +12,8 @@ step alone.
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 from typing import Callable, NamedTuple
 
@@ -32,6 +34,11 @@ class NominalBaseline(NamedTuple):
     floor: float
     validation_fraction: float
     fit: object = None
+
+    def rms(self, cost: float) -> float:
+        """The rms, in noise units, of an estimation cost (sum of squared residuals over the noise) spread over the
+        nominal fit's residual count: how far above the noise a fit of that cost ends."""
+        return math.sqrt(cost / max(self.n_residuals, 1))
 
 
 class WindowScreening(NamedTuple):
