@@ -15,7 +15,7 @@ from .from_data_sheet import data_sheet_start
 from .other import unexplained
 from .refits import effect_at_screened, effect_parameters, estimation_cost
 from .result import CandidateTrial, Finding
-from .rules import MIN_EXPLAINED, MODEL_SHORT, ON_TOP_REFITS, bic_penalty, is_solver_failure
+from .rules import MIN_EXPLAINED, MODEL_SHORT, ON_TOP_REFITS, RIVAL_ON_TOP, bic_penalty, is_solver_failure
 
 __all__ = ["add_findings", "more_findings", "drop_one", "joint_finding", "rank_by_contribution", "refreshed",
            "ON_TOP_REFITS"]
@@ -104,6 +104,7 @@ def _one_more(run, findings: list, final, pool: dict) -> tuple[bool, object]:
         gain, score_top, _ = scores[key]
         if math.isfinite(gain) and not score_top > MIN_EXPLAINED * base_top:
             break
+        share = gain / base_top if base_top > 0 else math.nan    # against its look-alikes' (:func:`_rival_look_alike`)
         refitted += 1
         c = pool.pop(key)
         run.refitted_on_top.update({key, c.label})    # the first round's pools key by effect, run.on_top by label
@@ -119,7 +120,7 @@ def _one_more(run, findings: list, final, pool: dict) -> tuple[bool, object]:
                 base_top, scores = _screen_on_top(run, final, pool)   # the rest, on top of the better optimum
         if ok:
             fit2, c2 = _grown_from_data_sheet(run, final, c, fit2, c2)
-            c, fit2 = _rival_look_alike(run, names, final, pool, scores, base_top, c, fit2, c2)
+            c, fit2 = _rival_look_alike(run, names, final, pool, scores, base_top, c, fit2, c2, share)
             run.trials[c.name].kept = True
             findings.append(_finding(c.name, fit2, final.fit_percent, run.trials[c.name]))
             for other_key in [k for k, v in pool.items() if v.name == c.name]:
@@ -141,16 +142,27 @@ def _one_more(run, findings: list, final, pool: dict) -> tuple[bool, object]:
     return False, final
 
 
-def _rival_look_alike(run, names: str, final, pool: dict, scores: dict, base_top: float, c, fit2, cost2: float):
+def _rival_look_alike(run, names: str, final, pool: dict, scores: dict, base_top: float, c, fit2, cost2: float,
+                      share: float = math.nan):
     """``(candidate, fit)`` of the effect kept on top: ``c`` (refitted as ``fit2``, estimation cost ``cost2``), or its
     best-screened look-alike left in ``pool`` where that one, refitted on top of the same findings, passes the keep
-    test too and ends lower on the estimation part.  The look-alike leaves ``pool``.
+    test too and ends lower on the estimation part.  The look-alike leaves ``pool``.  A look-alike whose screening
+    on top explains less than :data:`~.rules.RIVAL_ON_TOP` times ``c``'s ``share`` (the fraction of the findings'
+    cost on the screening window that ``c``'s screening explained) is no rival and is not refitted.
 
     Why: the screening on top ranks look-alikes by a few steps each (a load before seals that drag harder one
     way, where the seals are what is missing), and the first to pass the test would take the place of the other;
-    between two look-alikes that both pass, what the whole estimation part says decides."""
-    family = [k for k, v in pool.items() if v.name in family_of(c.name) and v.name != c.name
-              and (not math.isfinite(scores[k][0]) or scores[k][1] > MIN_EXPLAINED * base_top)]
+    between two look-alikes that both pass, what the whole estimation part says decides.  Why not every one: a
+    look-alike costs one or two whole fits, and where its screening explains a fraction of the kept one's, its
+    refit spends the budget the search on top and drop-one need (``docs/decisions/0131``)."""
+    def is_rival(k) -> bool:
+        gain = scores[k][0]
+        if not math.isfinite(gain):
+            return True          # not screened: its refit decides
+        strong = not (math.isfinite(share) and share > 0 and base_top > 0) or gain / base_top >= RIVAL_ON_TOP * share
+        return scores[k][1] > MIN_EXPLAINED * base_top and strong
+
+    family = [k for k, v in pool.items() if v.name in family_of(c.name) and v.name != c.name and is_rival(k)]
     if not family:
         return c, fit2
     key = max(family, key=lambda k: scores[k][1])

@@ -31,7 +31,7 @@ __all__ = [
     "SCREEN_SAMPLES", "SCREEN_EVALUATIONS", "SCANNED_EVALUATIONS", "DEFECT_WEIGHT", "DELAY_LAG_FACTORS",
     "DELAY_LAG_CORRELATION", "RELATIVE_SCORE", "MIN_EXPLAINED",
     "WINDOW_SAMPLES", "PREFIT_EVALUATIONS", "AT_NOISE_ON_WINDOW", "WINDOW_SHOWS_MISMATCH", "MAX_FITS", "EXPLAINED",
-    "RIVAL_WINDOW", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS", "SET_LEADERS", "WINDOW_DELAY_STEPS", "SET_EXPLAINS_WINDOW", "SET_SHRINK", "SET_FIT_SHARE",
+    "RIVAL_WINDOW", "RIVAL_ON_TOP", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS", "SET_LEADERS", "WINDOW_DELAY_STEPS", "SET_EXPLAINS_WINDOW", "SET_SHRINK", "SET_FIT_SHARE",
     "MIN_IMPROVEMENT_POINTS", "ERROR_SHRINK", "CLEARLY_SHORT", "AT_NOISE", "PERFECT_ERROR",
     "DELAY_SCAN_ERROR_RATIO", "SCAN_FACTOR", "SCAN_REFITS", "DELAY_GRID_PER_SAMPLE", "MIN_DELAY_SAMPLES",
     "ON_TOP_REFITS", "OTHER_RESIDUAL", "FURTHER_SEARCH_RESIDUAL", "MAX_CLOSEST", "TIME_BUDGET_S", "WORK_UNITS_PER_S", "BUDGET_BACKSTOP", "BUDGET_NOMINAL_FITS", "default_budget_s", "COMMAND_MAP_SPAN", "COMMAND_MAP_BINS", "HOLDING_SPAN", "SETS_SHOWN",
@@ -124,6 +124,9 @@ EXPLAINED = 1.5
 #: (ratio of window rms) a candidate whose pre-fit ends more than this above the best kept one's is no rival for
 #: the first finding: not fitted whole, screened as a second effect on top of it
 RIVAL_WINDOW = 3.0
+#: (ratio of shares explained) a look-alike whose screening on top of the findings explains less than this
+#: fraction of what the candidate kept there explained is no rival for it: not refitted in its place
+RIVAL_ON_TOP = 0.33
 #: (ratio of window rms) the first round fits effects without states first, except one whose pre-fit ends more
 #: than this above the round's best: it waits for the others
 DEFER_WINDOW = 5.0
