@@ -104,7 +104,7 @@ def _one_more(run, findings: list, final, pool: dict) -> tuple[bool, object]:
         gain, score_top, _ = scores[key]
         if math.isfinite(gain) and not score_top > MIN_EXPLAINED * base_top:
             break
-        share = gain / base_top if base_top > 0 else math.nan    # against its look-alikes' (:func:`_rival_look_alike`)
+        share = gain / base_top if math.isfinite(gain) and base_top > 0 else math.nan   # nan: nothing to compare
         refitted += 1
         c = pool.pop(key)
         run.refitted_on_top.update({key, c.label})    # the first round's pools key by effect, run.on_top by label
@@ -156,11 +156,10 @@ def _rival_look_alike(run, names: str, final, pool: dict, scores: dict, base_top
     look-alike costs one or two whole fits, and where its screening explains a fraction of the kept one's, its
     refit spends the budget the search on top and drop-one need (``docs/decisions/0131``)."""
     def is_rival(k) -> bool:
-        gain = scores[k][0]
+        gain, score, _ = scores[k]
         if not math.isfinite(gain):
             return True          # not screened: its refit decides
-        strong = not (math.isfinite(share) and share > 0 and base_top > 0) or gain / base_top >= RIVAL_ON_TOP * share
-        return scores[k][1] > MIN_EXPLAINED * base_top and strong
+        return score > MIN_EXPLAINED * base_top and not gain < RIVAL_ON_TOP * share * base_top   # nan share: no bar
 
     family = [k for k, v in pool.items() if v.name in family_of(c.name) and v.name != c.name and is_rival(k)]
     if not family:

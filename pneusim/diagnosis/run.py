@@ -13,7 +13,6 @@ step alone.
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass, field
 from typing import Callable, NamedTuple
 
