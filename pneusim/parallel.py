@@ -12,6 +12,7 @@ of every worker would share the same cores and spin on them.
 from __future__ import annotations
 
 import contextlib
+import time
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures import as_completed as futures_completed
 from typing import Callable, Iterator, Sequence
@@ -50,9 +51,41 @@ def _worker_init() -> None:
     _BLAS_LIMIT.append(threadpool_limits(1))
 
 
-def local_pool(workers: int) -> ProcessPoolExecutor:
-    """A pool of ``workers`` local processes, each with one BLAS thread."""
-    return ProcessPoolExecutor(max_workers=workers, initializer=_worker_init)
+@contextlib.contextmanager
+def local_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
+    """A pool of ``workers`` local processes, each with one BLAS thread, for a ``with`` block: the block's end
+    waits for the runs submitted; a Ctrl-C, a SIGTERM (:mod:`pneusim.shutdown`) or any other exception out of
+    the block stops the pool at once (:func:`_stop`)."""
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_init)
+    try:
+        yield pool
+    except BaseException:
+        _stop(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+#: (s) how long the stopped workers may take to end their runs after SIGTERM before they are killed
+STOP_GRACE_S = 5.0
+
+
+def _stop(pool: ProcessPoolExecutor) -> None:
+    """Cancel the runs not started and end the workers' running ones (SIGTERM, then SIGKILL for those still running
+    :data:`STOP_GRACE_S` later).
+
+    Why: ``ProcessPoolExecutor``'s own exit waits for every run submitted, so a batch of sixty diagnoses
+    interrupted after the first would go on for an hour; and a worker that a signal interrupts only fails its
+    run and takes the next.  The executor has no public way to end running workers: its process table is read
+    before the shutdown clears it."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        process.terminate()
+    deadline = time.monotonic() + STOP_GRACE_S
+    for process in processes:
+        process.join(max(0.0, deadline - time.monotonic()))
+        if process.is_alive():
+            process.kill()
 
 
 def executor_map(func: Callable, tasks: Sequence[tuple], lost: Callable, workers: int, dask: str | None = None,
