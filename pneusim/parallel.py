@@ -12,6 +12,7 @@ of every worker would share the same cores and spin on them.
 from __future__ import annotations
 
 import contextlib
+import signal
 import time
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures import as_completed as futures_completed
@@ -47,8 +48,14 @@ def dask_client(dask: str, workers: int):
 
 
 def _worker_init() -> None:
-    """In each local worker process: one BLAS thread (see the module docstring)."""
+    """In each local worker process: one BLAS thread (see the module docstring), and SIGTERM's default action.
+
+    Why the default: a worker forked from a command that turns SIGTERM into an exception (:mod:`.shutdown`)
+    inherits that handler, so the SIGTERM :func:`_stop` sends only failed the worker's run; the worker took the next
+    one queued, ignored the second signal and ran until it was killed.  A worker holds nothing that must be
+    closed (its results go back to the parent), so it may end at once."""
     _BLAS_LIMIT.append(threadpool_limits(1))
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 @contextlib.contextmanager
@@ -86,6 +93,7 @@ def _stop(pool: ProcessPoolExecutor) -> None:
         process.join(max(0.0, deadline - time.monotonic()))
         if process.is_alive():
             process.kill()
+            process.join()
 
 
 def executor_map(func: Callable, tasks: Sequence[tuple], lost: Callable, workers: int, dask: str | None = None,

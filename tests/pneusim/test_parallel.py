@@ -2,11 +2,13 @@
 workers and cancels the runs not started, instead of ``ProcessPoolExecutor``'s exit running every one queued."""
 
 import os
+import signal
 import time
 
 import pytest
 
-from pneusim.parallel import executor_map
+from pneusim.parallel import executor_map, local_pool
+from pneusim.shutdown import sigterm_raises
 
 
 def _lost(task, exc):
@@ -35,3 +37,27 @@ def test_a_local_batch_returns_every_result():
     tasks = [(f"exit {i}",) for i in range(5)]
     results = sorted(os.waitstatus_to_exitcode(r) for r in executor_map(os.system, tasks, _lost, workers=2))
     assert results == [0, 1, 2, 3, 4]
+
+
+def _mark_and_sleep(path, seconds):
+    path.touch()
+    time.sleep(seconds)
+
+
+@pytest.mark.slow
+def test_stopped_workers_end_on_sigterm(tmp_path):
+    """A batch started inside a command's SIGTERM handling (:func:`sigterm_raises`) and interrupted: its workers end on
+    the stop's SIGTERM (exit by signal 15), where a worker that inherited the command's handler turned it into an
+    exception that failed its run only, ignored the second and was killed (signal 9)."""
+    with sigterm_raises(), pytest.raises(KeyboardInterrupt):
+        with local_pool(2) as pool:
+            for i in range(4):
+                pool.submit(_mark_and_sleep, tmp_path / str(i), 60)
+            for _ in range(400):                    # both workers in a run (at most 20 s)
+                if len(list(tmp_path.iterdir())) >= 2:
+                    break
+                time.sleep(0.05)
+            processes = list(pool._processes.values())
+            raise KeyboardInterrupt
+    assert len(processes) == 2
+    assert [p.exitcode for p in processes] == [-signal.SIGTERM] * 2
