@@ -5,11 +5,12 @@ a script regenerates, never from a sentence typed by hand.  The header line name
 
 * the **commit** (``git rev-parse --short HEAD``, with ``+ uncommitted changes`` when the package
   sources differ from it),
-* the **machine** (CPU model, logical cores, ``OPENBLAS_CORETYPE`` when set, the 1-minute load
-  average when the table is written),
+* the **machine** (CPU model, logical cores, the BLAS kernels the process runs (pinned by ``import pneusim``,
+  :mod:`pneusim.arithmetic`, or chosen by ``OPENBLAS_CORETYPE``), the 1-minute load average when the table is
+  written),
 * the **date** (UTC) and
 * the **command** that produced it (the pytest arguments, and every ``PNEUSIM_*`` or ``OPENBLAS_*``
-  variable set in the environment).
+  variable set in the environment, but the core type ``import pneusim`` set itself).
 
 ``PNEUSIM_RESULTS_DIR`` writes somewhere else (a scratch folder for a quick look); by default the
 file goes to ``docs/results/`` of this repository, where ``git diff`` shows what moved.
@@ -24,6 +25,8 @@ import shlex
 import subprocess
 import sys
 from pathlib import Path
+
+from pneusim.arithmetic import blas_kernels, pinned_here
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS_DIR = ROOT / "docs" / "results"
@@ -49,7 +52,7 @@ def commit() -> str:
 
 
 def machine() -> str:
-    """CPU model, logical cores, ``OPENBLAS_CORETYPE`` when set, and the 1-minute load average."""
+    """CPU model, logical cores, the BLAS kernels this process runs, and the 1-minute load average."""
     model = platform.processor() or platform.machine()
     try:
         with open("/proc/cpuinfo") as f:
@@ -57,8 +60,9 @@ def machine() -> str:
     except OSError:
         pass
     parts = [model, f"{os.cpu_count()} cores"]
-    if os.environ.get("OPENBLAS_CORETYPE"):
-        parts.append(f"OPENBLAS_CORETYPE={os.environ['OPENBLAS_CORETYPE']}")
+    kernels = sorted(set(blas_kernels()))
+    if kernels:
+        parts.append(f"BLAS kernels {', '.join(kernels)}" + (" (pinned by pneusim)" if pinned_here() else ""))
     try:
         parts.append(f"load {os.getloadavg()[0]:.1f}")
     except OSError:
@@ -69,7 +73,8 @@ def machine() -> str:
 def command() -> str:
     """The pytest command line that is running, with the ``PNEUSIM_*`` and ``OPENBLAS_*`` variables set."""
     env = " ".join(f"{k}={v}" for k, v in sorted(os.environ.items())
-                   if k.startswith(("PNEUSIM_", "OPENBLAS_")) and k != "PNEUSIM_RESULTS_DIR")
+                   if k.startswith(("PNEUSIM_", "OPENBLAS_")) and k != "PNEUSIM_RESULTS_DIR"
+                   and not (k == "OPENBLAS_CORETYPE" and pinned_here()))
     return " ".join(p for p in (env, "pytest", shlex.join(sys.argv[1:])) if p)
 
 

@@ -1,6 +1,11 @@
 """pneusim: physics of servo-pneumatic rigs, solved by SUNDIALS, for benchmarking identification."""
 
-from .version import __version__
+# first, before anything loads NumPy: the same BLAS kernels on every x86-64 machine (see .arithmetic)
+from .arithmetic import pin_blas_kernels
+
+pin_blas_kernels()
+
+from .version import __version__  # noqa: E402 - after the pin
 
 __all__ = ["__version__", "diagnose"]
 
