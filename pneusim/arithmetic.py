@@ -6,7 +6,7 @@ lacks physics (parameters at their bounds, a penalty formulation) amplifies thos
 three-effect recording ended between -18.5 % and -33.5 % of validation fit under four kernels, and the diagnosis
 that followed named other effects (``docs/decisions/0133``).  As Intel MKL's conditional numerical reproducibility (``MKL_CBWR``) does, pneusim
 asks OpenBLAS for the same kernels everywhere they run: ``OPENBLAS_CORETYPE=Haswell`` (AVX2 with fused
-multiply-add: every Intel CPU since 2013 and every AMD Zen) where the variable is unset.
+multiply-add: Intel Core and Xeon CPUs since 2013, every AMD Zen) where the variable is unset.
 
 OpenBLAS reads the variable once, when NumPy loads it, so :func:`pin_blas_kernels` runs first thing in
 ``import pneusim`` and does nothing once NumPy is imported (a process that imported NumPy first keeps its CPU's
