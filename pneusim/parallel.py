@@ -81,9 +81,9 @@ def _stop(pool: ProcessPoolExecutor) -> None:
     :data:`STOP_GRACE_S` later).
 
     Why: ``ProcessPoolExecutor``'s own exit waits for every run submitted, so a batch of sixty diagnoses
-    interrupted after the first would go on for an hour; and a worker that a signal interrupts only fails its
-    run and takes the next.  The executor has no public way to end running workers: its process table is read
-    before the shutdown clears it."""
+    interrupted after the first would go on for an hour.  The workers end on SIGTERM (:func:`_worker_init`); the
+    SIGKILL is for one stuck where a signal cannot reach it.  The executor has no public way to end running
+    workers: its process table is read before the shutdown clears it."""
     processes = list((getattr(pool, "_processes", None) or {}).values())
     pool.shutdown(wait=False, cancel_futures=True)
     for process in processes:
