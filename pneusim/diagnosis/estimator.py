@@ -377,6 +377,7 @@ class Diagnosis:
         if out is None or not out[2]:
             return None
         fit, _, _ = out
+        run.joint = best
         run.several_effects, run.max_findings = True, max_effects
         for c in best.candidates:
             run.trials[c.name].kept = True

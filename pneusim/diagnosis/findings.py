@@ -16,6 +16,7 @@ from .other import unexplained
 from .refits import effect_at_screened, effect_parameters, estimation_cost
 from .result import CandidateTrial, Finding
 from .rules import MIN_EXPLAINED, MODEL_SHORT, ON_TOP_REFITS, RIVAL_ON_TOP, bic_penalty, is_solver_failure
+from .window_sets import subset_from_prefit
 
 __all__ = ["add_findings", "more_findings", "drop_one", "joint_finding", "rank_by_contribution", "refreshed",
            "ON_TOP_REFITS"]
@@ -400,7 +401,10 @@ def drop_one(run, findings: list, final) -> tuple[list, object]:
     Why: a finding kept on top of the first may only have helped because another effect was still missing, and
     an early finding may be a look-alike the later ones make redundant; only the test with every other finding
     present tells (``diagnosis.md``: a finding that only helps because another one is missing is dropped).
-    With one finding the keep test against the nominal model was that test."""
+    With one finding the keep test against the nominal model was that test.  Where the others are part of a set
+    fitted jointly from the data sheet, a finding that passes against the warm fit without it is also tested
+    against the others fitted as the set was (:func:`_against_subset_from_prefit`): the warm fit starts where the
+    nominal parameters moved to work with the finding, and a look-alike can pass against it alone."""
     basis = run.baseline
     while len(findings) >= 2:
         c_final, _ = estimation_cost(final, run.noise)
@@ -422,6 +426,9 @@ def drop_one(run, findings: list, final) -> tuple[list, object]:
             k = _added_parameters(final, f.effect)
             ok, _, reason = run.stages.keep_test(c_without, c_final, basis.n_residuals, k, without.fit_percent,
                                                  final.fit_percent, basis.floor)
+            if ok:
+                without, c_without, ok, reason = _against_subset_from_prefit(run, f, others, without, c_without,
+                                                                             (ok, reason), c_final, k, final)
             run.trials[f.effect].status += (f"; drop-one, with {', '.join(e.name for e in others) or 'nothing'} "
                                             f"present (validation {without.fit_percent:.2f} % without it): {reason}")
             run.contributions[f.effect] = final.fit_percent - without.fit_percent
@@ -435,6 +442,31 @@ def drop_one(run, findings: list, final) -> tuple[list, object]:
         findings = [g for g in findings if g is not f]
         final = without
     return [_refreshed(f, final) for f in findings], final
+
+
+def _against_subset_from_prefit(run, f, others: list, without, c_without: float, test: tuple, c_final: float,
+                                k: int, final) -> tuple:
+    """Where ``f`` passed drop-one against the warm fit without it, and the findings left without it, ``others``,
+    are part of the set fitted jointly: they are fitted as the set was, from the data sheet at their own window
+    pre-fit (:func:`.window_sets.subset_from_prefit`); where that ends lower on the estimation part, it is the fit
+    without ``f`` and the keep test is applied again.  Returns ``(without, c_without, ok, reason)``."""
+    ok, reason = test
+    started = time.perf_counter()
+    cold, note = subset_from_prefit(run, [e.name for e in others])
+    run.trials[f.effect].seconds = (run.trials[f.effect].seconds or 0.0) + time.perf_counter() - started
+    if cold is None:
+        return without, c_without, ok, reason + (f" ({note})" if note else "")
+    c_cold, _ = estimation_cost(cold, run.noise)
+    if not c_cold < c_without:
+        return without, c_without, ok, reason + (f"; without it from the data sheet as the set was fitted "
+                                                 f"(validation {cold.fit_percent:.2f} %) ends higher on the "
+                                                 f"estimation part ({c_cold:.0f} >= {c_without:.0f})")
+    basis = run.baseline
+    ok, _, again = run.stages.keep_test(c_cold, c_final, basis.n_residuals, k, cold.fit_percent, final.fit_percent,
+                                        basis.floor)
+    return cold, c_cold, ok, (reason + f"; without it from the data sheet as the set was fitted, lower on the "
+                                       f"estimation part ({c_cold:.0f} < {c_without:.0f}; validation "
+                                       f"{cold.fit_percent:.2f} %): {again}")
 
 
 def _added_parameters(fit, name: str) -> int:

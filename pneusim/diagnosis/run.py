@@ -88,6 +88,9 @@ class DiagnosisRun:
     contributions : dict
         ``{effect: points}``: the validation fit each finding adds with all the others present, from the last
         drop-one test (:func:`.findings.drop_one`).
+    joint : WindowSet or None
+        The set of ``window_sets`` fitted whole together (None where none was): drop-one fits its subsets as it was
+        fitted (:func:`.window_sets.subset_from_prefit`).
     """
 
     recording: object
@@ -110,6 +113,7 @@ class DiagnosisRun:
     window_sets: list = field(default_factory=list)
     window_sets_s: float = 0.0
     contributions: dict = field(default_factory=dict)
+    joint: object = None
 
     @property
     def noise(self) -> dict:

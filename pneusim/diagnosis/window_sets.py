@@ -52,9 +52,11 @@ from .delay import DELAY, on_grid, parabola_in_log
 from .from_data_sheet import data_sheet_start
 from .refits import effect_at_prefit, estimation_cost
 from .result import CandidateTrial
-from .rules import PREFIT_START, SCAN_FACTOR, SET_LEADERS, WINDOW_DELAY_STEPS, bic_penalty, is_solver_failure
+from .rules import (PREFIT_START, RIVAL_WINDOW, SCAN_FACTOR, SET_LEADERS, WINDOW_DELAY_STEPS, bic_penalty,
+                    is_solver_failure)
 
-__all__ = ["WindowSet", "criterion", "leading_variants", "search_sets", "refine_delay", "fit_set"]
+__all__ = ["WindowSet", "criterion", "leading_variants", "search_sets", "refine_delay", "fit_set",
+           "subset_from_prefit"]
 
 
 @dataclass
@@ -219,14 +221,10 @@ def fit_set(run, best: WindowSet, window_nominal: float):
     (the nominal ones only where the pre-fit explained the window, :data:`~.rules.PREFIT_START` of the nominal
     pre-fit's ``window_nominal``), and apply the keep test against the nominal model.  Each member's trial records
     the outcome.  Returns ``(fit, cost, kept)``, or None where the fit failed."""
-    pre = best.prefit
-    effects = [effect_at_prefit(c, pre) for c in best.candidates]
-    explained = pre.normalised_objective <= PREFIT_START * window_nominal
-    nominal_start = {k: v for k, v in pre.estimates.items() if "." not in k} if explained else None
     run.say(f"fit with {best.label} together from the data sheet")
     started = time.perf_counter()
     try:
-        fit = run.stages.fit(run.recording, run.rig, effects, run.baseline.validation_fraction, nominal_start)
+        fit = _from_prefit(run, best, window_nominal)
     except Exception as exc:  # noqa: BLE001 - a failed fit is reported in the trials
         if not is_solver_failure(exc):
             raise
@@ -248,6 +246,53 @@ def fit_set(run, best: WindowSet, window_nominal: float):
         trial.refitted = True
         trial.fit_percent, trial.improvement_points = fit.fit_percent, fit.fit_percent - basis.fit0
     return fit, cost, kept
+
+
+def _from_prefit(run, window_set: WindowSet, window_nominal: float):
+    """The whole fit of ``window_set`` from the data sheet, each effect and the nominal parameters from its pre-fit
+    on the window (the nominal ones only where the pre-fit explained the window, :data:`~.rules.PREFIT_START` of
+    the nominal pre-fit's ``window_nominal``)."""
+    pre = window_set.prefit
+    effects = [effect_at_prefit(c, pre) for c in window_set.candidates]
+    explained = pre.normalised_objective <= PREFIT_START * window_nominal
+    nominal_start = {k: v for k, v in pre.estimates.items() if "." not in k} if explained else None
+    return run.stages.fit(run.recording, run.rig, effects, run.baseline.validation_fraction, nominal_start)
+
+
+def subset_from_prefit(run, names) -> tuple:
+    """The set fitted whole (``run.joint``) without some of its members, fitted as the set was: from the data
+    sheet at the subset's own pre-fit on the window.  ``names``: the effects left.  Returns ``(fit, note)``:
+    ``fit`` None where ``names`` is not a subset of the joint set, where the subset has no pre-fit on the window,
+    where that pre-fit ends more than :data:`~.rules.RIVAL_WINDOW` times above the set's (no rival for it, as a
+    candidate that far behind the first finding is not fitted whole), or where its fit fails; ``note`` says why
+    (empty when no joint set was fitted).
+
+    Why: drop-one's fit without a member is warm from the set's optimum, where the nominal parameters have moved
+    to work with that member; the set itself was fitted from the data sheet.  The subset deserves the same start:
+    a member is only needed where the best fit found without it is worse (a dead band alone, fitted from the
+    data sheet, validated above the dead band and a leak that drop-one had kept against its warm refit)."""
+    joint = run.joint
+    if joint is None:
+        return None, ""
+    names = set(names)
+    if not names or not names < set(joint.names):
+        return None, ""
+    labels = sorted(c.label for c in joint.candidates if c.name in names)
+    subset = next((w for w in run.window_sets if sorted(c.label for c in w.candidates) == labels
+                   and w.prefit is not None), None)
+    if subset is None:
+        return None, "no pre-fit on the window without it"
+    ratio = subset.normalised_objective / joint.normalised_objective
+    if ratio > RIVAL_WINDOW:
+        return None, (f"without it the window's pre-fit ends {ratio:.3g} times the set's, above {RIVAL_WINDOW:g}: "
+                      "not fitted from the data sheet")
+    run.say(f"drop-one: {subset.label} from the data sheet, as the set was fitted")
+    try:
+        return _from_prefit(run, subset, run.window.base.normalised_objective), ""
+    except Exception as exc:  # noqa: BLE001 - the warm refit stands
+        if not is_solver_failure(exc):
+            raise
+        return None, f"its fit from the data sheet failed ({exc})"
 
 
 def _others(window_set: WindowSet, c) -> str:

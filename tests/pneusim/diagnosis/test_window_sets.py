@@ -183,3 +183,50 @@ def test_a_pair_a_hair_below_the_best_single_effect_is_not_fitted_whole(monkeypa
         run.window = WindowScreening({}, _pre(60.0), True, {c.label: (c, _pre(40.0)) for c in (HEAT, LOAD)})
         assert estimator.Diagnosis()._joint(run, "stand-in") is None
         assert fitted == ([pair] if fitted_whole else [])
+
+
+@pytest.mark.parametrize("single_rms, dropped", [(1.2, True), (4.0, False)])
+def test_drop_one_fits_a_joint_sets_subset_as_the_set_was_fitted(single_rms, dropped):
+    """Drop-one's fit without a member of a set found jointly is warm from the set's optimum, where the nominal
+    parameters have moved to work with it; the set itself was fitted from the data sheet at its window pre-fit.
+    Where the warm fit without the leak leaves it a pass, the offset alone is also fitted from its own window
+    pre-fit: ending lower on the estimation part and validating above the pair, it is the fit without the leak,
+    and the leak is dropped.  An offset whose window pre-fit ends more than RIVAL_WINDOW times the pair's is no
+    rival for it and is not fitted: the leak stays."""
+    from stand_ins import StandInFit
+
+    from pneusim.diagnosis.findings import drop_one
+    from pneusim.diagnosis.result import CandidateTrial, Finding
+    from pneusim.diagnosis.rules import RIVAL_WINDOW
+    from pneusim.diagnosis.run import WindowScreening
+
+    assert (single_rms > RIVAL_WINDOW) is not dropped        # the pair's window pre-fit ends at 1 times the noise
+    n, fitted = 1000, []
+
+    def warm_refit(recording, rig, effects, warm, start_values=None):     # without the leak: 2, without the offset: 9
+        return StandInFit(2.0 if [e.name for e in effects] == ["valve_offset"] else 9.0, 98.0, effects, n=n)
+
+    def from_data_sheet(recording, rig, effects, validation_fraction, nominal_start=None):
+        fitted.append([e.name for e in effects])
+        return StandInFit(1.05, 99.6, effects, n=n)
+
+    def keep_test(c0, c1, n_, k, f0, f1, floor):           # an information gain and a validation gain
+        ok = c1 < 0.9 * c0 and f1 - f0 > 0.5
+        return ok, 0.5, "passes" if ok else "fails"
+
+    pair = WindowSet((OFFSET, LEAK_A), _pre(1.0))
+    run = stand_in_run(NominalBaseline(NOISE, 30.0 ** 2 * n, n, 0.0, 0.2, 0.3, None), refit=warm_refit,
+                       fit=from_data_sheet, keep_test=keep_test,
+                       trials={c.name: CandidateTrial(c.name, 1.0, "", status="kept", kept=True)
+                               for c in pair.candidates})
+    run.window = WindowScreening({}, _pre(30.0), True, {})
+    run.window_sets = [pair, WindowSet((OFFSET,), _pre(single_rms)), WindowSet((LEAK_A,), _pre(12.0))]
+    run.joint = pair
+    effects = [make_effect("valve_offset"), make_effect("leakage", kind="external", chamber="a")]
+    final = StandInFit(1.0, 99.3, effects, n=n)
+    findings, final = drop_one(run, [Finding(e.name, "", {}, 99.3, 99.3) for e in effects], final)
+    assert [f.effect for f in findings] == (["valve_offset"] if dropped else ["valve_offset", "leakage"])
+    assert fitted == ([["valve_offset"]] if dropped else [])        # the leak alone is 12 times the pair: not fitted
+    assert final.fit_percent == (99.6 if dropped else 99.3)
+    assert ("from the data sheet as the set was fitted" in run.trials["leakage"].status) is dropped
+    assert run.trials["leakage"].kept is not dropped
