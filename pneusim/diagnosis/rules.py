@@ -122,7 +122,9 @@ MAX_FITS = 6
 #: other families are not fitted
 EXPLAINED = 1.5
 #: (ratio of window rms) a candidate whose pre-fit ends more than this above the best kept one's is no rival for
-#: the first finding: not fitted whole, screened as a second effect on top of it
+#: the first finding: not fitted whole, screened as a second effect on top of it; and a subset of a set fitted
+#: jointly whose pre-fit ends more than this above the set's is no rival for the set: drop-one does not fit it
+#: from the data sheet
 RIVAL_WINDOW = 3.0
 #: (ratio of shares explained) a look-alike whose screening on top of the findings explains less than this
 #: fraction of what the candidate kept there explained is no rival for it: not refitted in its place
