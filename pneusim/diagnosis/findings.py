@@ -424,11 +424,16 @@ def drop_one(run, findings: list, final) -> tuple[list, object]:
                 run.trials[f.effect].seconds = (run.trials[f.effect].seconds or 0.0) + time.perf_counter() - started
             c_without, _ = estimation_cost(without, run.noise)
             k = _added_parameters(final, f.effect)
-            ok, _, reason = run.stages.keep_test(c_without, c_final, basis.n_residuals, k, without.fit_percent,
-                                                 final.fit_percent, basis.floor)
+
+            def judge(fit, cost):
+                """The keep test of ``f`` against ``fit`` without it (estimation cost ``cost``): ``(ok, reason)``."""
+                ok, _, reason = run.stages.keep_test(cost, c_final, basis.n_residuals, k, fit.fit_percent,
+                                                     final.fit_percent, basis.floor)
+                return ok, reason
+
+            ok, reason = judge(without, c_without)
             if ok:
-                without, c_without, ok, reason = _against_subset_from_prefit(run, f, others, without, c_without,
-                                                                             (ok, reason), c_final, k, final)
+                without, ok, reason = _against_subset_from_prefit(run, f, others, without, c_without, reason, judge)
             run.trials[f.effect].status += (f"; drop-one, with {', '.join(e.name for e in others) or 'nothing'} "
                                             f"present (validation {without.fit_percent:.2f} % without it): {reason}")
             run.contributions[f.effect] = final.fit_percent - without.fit_percent
@@ -444,29 +449,25 @@ def drop_one(run, findings: list, final) -> tuple[list, object]:
     return [_refreshed(f, final) for f in findings], final
 
 
-def _against_subset_from_prefit(run, f, others: list, without, c_without: float, test: tuple, c_final: float,
-                                k: int, final) -> tuple:
-    """Where ``f`` passed drop-one against the warm fit without it, and the findings left without it, ``others``,
-    are part of the set fitted jointly: they are fitted as the set was, from the data sheet at their own window
-    pre-fit (:func:`.window_sets.subset_from_prefit`); where that ends lower on the estimation part, it is the fit
-    without ``f`` and the keep test is applied again.  Returns ``(without, c_without, ok, reason)``."""
-    ok, reason = test
+def _against_subset_from_prefit(run, f, others: list, without, c_without: float, reason: str, judge) -> tuple:
+    """Where ``f`` passed drop-one (``reason``) against the warm fit ``without`` it (estimation cost ``c_without``),
+    and the findings left without it, ``others``, are part of the set fitted jointly: they are fitted as the set
+    was, from the data sheet at their own window pre-fit (:func:`.window_sets.subset_from_prefit`); where that ends
+    lower on the estimation part, it is the fit without ``f`` and ``judge(fit, cost) -> (ok, reason)``, the keep
+    test, is applied again.  Returns ``(without, ok, reason)``."""
     started = time.perf_counter()
     cold, note = subset_from_prefit(run, [e.name for e in others])
     run.trials[f.effect].seconds = (run.trials[f.effect].seconds or 0.0) + time.perf_counter() - started
     if cold is None:
-        return without, c_without, ok, reason + (f" ({note})" if note else "")
+        return without, True, reason + (f" ({note})" if note else "")
     c_cold, _ = estimation_cost(cold, run.noise)
     if not c_cold < c_without:
-        return without, c_without, ok, reason + (f"; without it from the data sheet as the set was fitted "
-                                                 f"(validation {cold.fit_percent:.2f} %) ends higher on the "
-                                                 f"estimation part ({c_cold:.0f} >= {c_without:.0f})")
-    basis = run.baseline
-    ok, _, again = run.stages.keep_test(c_cold, c_final, basis.n_residuals, k, cold.fit_percent, final.fit_percent,
-                                        basis.floor)
-    return cold, c_cold, ok, (reason + f"; without it from the data sheet as the set was fitted, lower on the "
-                                       f"estimation part ({c_cold:.0f} < {c_without:.0f}; validation "
-                                       f"{cold.fit_percent:.2f} %): {again}")
+        return without, True, reason + (f"; without it from the data sheet as the set was fitted "
+                                        f"(validation {cold.fit_percent:.2f} %) ends higher on the "
+                                        f"estimation part ({c_cold:.0f} >= {c_without:.0f})")
+    ok, again = judge(cold, c_cold)
+    return cold, ok, (reason + f"; without it from the data sheet as the set was fitted, lower on the estimation "
+                               f"part ({c_cold:.0f} < {c_without:.0f}; validation {cold.fit_percent:.2f} %): {again}")
 
 
 def _added_parameters(fit, name: str) -> int:
