@@ -26,6 +26,7 @@ import time
 import numpy as np
 
 from ..model import make_effect
+from .budget import TimeBudgetExhausted
 from .candidates import Candidate
 from .refits import effect_parameters, estimation_cost
 from .rules import (DELAY_GRID_PER_SAMPLE, DELAY_LAG_CORRELATION, DELAY_LAG_FACTORS, DELAY_SCAN_ERROR_RATIO,
@@ -134,7 +135,7 @@ def scan_kept_delay(run) -> None:
     trial = run.trials[DELAY]
     text = ", ".join(f"{d * 1e3:.4g} ms {c:.0f}" for d, c, _ in scan)
     trial.seconds = (trial.seconds or 0.0) + sum(t for _, _, t in scan)
-    trial.status += f"; delay scan with refits (estimation residual by delay: {text}): "
+    trial.status += f"; delay scan with refits (estimation residual by delay: {text}{_ended(best)}): "
     if best is fit_d:
         trial.status += "the kept delay is best"
         return
@@ -165,7 +166,7 @@ def scan_found_delay(run, final):
     if trial is not None:
         trial.seconds = (trial.seconds or 0.0) + sum(t for _, _, t in scan)
         trial.status += ("; delay scan with refits, the other findings present (estimation residual by delay: "
-                         + ", ".join(f"{d * 1e3:.4g} ms {c:.0f}" for d, c, _ in scan) + ")")
+                         + ", ".join(f"{d * 1e3:.4g} ms {c:.0f}" for d, c, _ in scan) + _ended(best) + ")")
     return best
 
 
@@ -179,6 +180,8 @@ class _Scan:
         self.others = [e for e in kept_fit.effects_ if e.name != DELAY]
         self.fits = {self.d0: (estimation_cost(kept_fit, run.noise)[0], kept_fit, 0.0)}
         self.budget = SCAN_REFITS
+        #: why the scan ended before its refits did: a refit refused or stopped by the time budget (None: it did not)
+        self.ended: str | None = None
 
     def at(self, delay_s: float) -> float:
         """Refit at ``delay_s`` (on the grid) unless done or out of budget; returns the delay on the grid."""
@@ -193,6 +196,10 @@ class _Scan:
             fit = run.stages.refit(run.recording, run.rig, self.others + [make_effect(DELAY, delay_s=delay_s)],
                                    self.kept_fit)
             cost = estimation_cost(fit, run.noise)[0]
+        except TimeBudgetExhausted as exc:
+            # the budget is spent: the scan ends here (this refit listed as failed, with its seconds), not with
+            # the refused ones after it listed as failed too
+            self.budget, self.ended, fit, cost = 0, str(exc), None, math.inf
         except Exception as exc:  # noqa: BLE001 - a delay that cannot be fitted is left out
             if not is_solver_failure(exc):
                 raise
@@ -216,7 +223,8 @@ def scan_with_refits(run, kept_fit):
     walks on by the same factor while the residual falls, then refits at the minimum of the parabola in
     ``log(delay)`` through the best delay and its neighbours, then halves the wider side of the bracket until
     the neighbours are a grid step (a tenth of a sample) from the best; at most :data:`~.rules.SCAN_REFITS`
-    refits (``run.stages.refit``).  A refit that fails is left out of the scan."""
+    refits (``run.stages.refit``).  A refit that fails is left out of the scan; one that the time budget refuses
+    or stops ends the scan with the refits it has (each later one would be refused too)."""
     s = _Scan(run, kept_fit)
     s.at(s.d0 * SCAN_FACTOR)
     s.at(s.d0 / SCAN_FACTOR)
@@ -249,8 +257,14 @@ def scan_with_refits(run, kept_fit):
     std = _standard_error(ds, cs, k, estimation_cost(best_fit, run.noise)[1])
     if hasattr(best_fit, "solver"):
         best_fit.solver["delay_scan"] = {"delay_s": [d for d, _, _ in scan], "cost": [c for _, c, _ in scan],
-                                         "std_s": std}
+                                         "std_s": std, "ended": s.ended}
     return best_fit, scan
+
+
+def _ended(best_fit) -> str:
+    """The scan's status text where the time budget ended it before its refits did (``best_fit``: its result)."""
+    ended = (getattr(best_fit, "solver", None) or {}).get("delay_scan", {}).get("ended")
+    return f"; the scan ended there, {ended}" if ended else ""
 
 
 def _standard_error(delays, costs, best: int, n_residuals: int) -> float | None:

@@ -365,6 +365,42 @@ def test_delay_scan_with_refits_walks_to_the_minimum():
     assert 0 < k < len(ds) - 1 and max(ds[k + 1] / ds[k], ds[k] / ds[k - 1]) < 1.25
 
 
+def test_delay_scan_ends_with_the_refits_it_has_where_the_time_budget_stops_it():
+    """A refit of the scan that the time budget refuses or stops ends the scan: it is listed as failed, no refit
+    is tried after it, the best delay fitted so far is kept, and the scan says why it ended; stand-in refits as
+    above, the third one stopped."""
+    from types import SimpleNamespace
+
+    from stand_ins import NOISE, cost_fit, stand_in_run
+
+    from pneusim.diagnosis.budget import TimeBudgetExhausted
+    from pneusim.diagnosis.delay import scan_with_refits
+    from pneusim.diagnosis.run import NominalBaseline
+
+    def cost(delay_s):
+        return 1e4 * (1.0 + math.log(delay_s / 0.0125) ** 2)
+
+    tried = []
+
+    def stand_in_refit(recording, rig, effects, warm, start_values=None):
+        delay_s = effects[-1].values["delay_s"]
+        tried.append(delay_s)
+        if len(tried) == 3:
+            raise TimeBudgetExhausted("stopped: the refit ran to the end of the 240 s time budget and was stopped")
+        return cost_fit(cost(delay_s), effects)
+
+    run = stand_in_run(NominalBaseline(NOISE, math.nan, 1, math.nan, 0.1, 0.3), SimpleNamespace(sample_time_s=0.001),
+                       refit=stand_in_refit)
+    kept = cost_fit(cost(0.008), [make_effect("transport_delay", delay_s=0.008)])
+    best, scan = scan_with_refits(run, kept)
+    # the kept delay, its two neighbours (12 ms best of them), then the walk's next refit is stopped: no more
+    assert tried == pytest.approx([0.012, 0.0053, 0.018])
+    assert [d for d, _, _ in scan] == pytest.approx([0.0053, 0.008, 0.012, 0.018])
+    assert scan[-1][1] == math.inf
+    assert best.effects_[-1].values["delay_s"] == pytest.approx(0.012)
+    assert "240 s time budget" in best.solver["delay_scan"]["ended"]
+
+
 @pytest.mark.minutes
 def test_transport_delay_recovered_between_samples(tmp_path):
     """A 35 ms dead time on the 10 ms rig (three and a half samples, off the screening's grid): named
