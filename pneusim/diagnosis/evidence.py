@@ -1,8 +1,10 @@
 """The evidence plot of each finding: the signature that identifies its effect, before (the nominal model) and after
-(with the findings), drawn where it can be seen (:data:`EVIDENCE_PLOTS`): the residual against the direction of motion
-for an asymmetry, against the pressure difference for pressure-dependent friction or a supply droop, against position
-for a load, the command-residual cross-correlation for a delay or a spool lag, the command-velocity map near null
-for a dead band or an offset, the creep while holding for a leak or heat transfer."""
+(with the findings), drawn where it can be seen.  Each effect names its plot (``Effect.evidence_plot``, one of
+:data:`pneusim.model.effects.EVIDENCE_PLOTS`): the residual against the direction of motion for an asymmetry, against
+the pressure difference for pressure-dependent friction or a supply droop, against position for a load, the
+command-residual cross-correlation for a delay or a spool lag, the command-velocity map near null for a dead band or
+an offset, the creep while holding for a leak, the relaxation after moves for heat transfer; ``other`` the residuals
+over time."""
 
 from __future__ import annotations
 
@@ -10,12 +12,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..model.effects import EFFECTS
 from ..outputs import savefig_atomic
 from .locate import named_states, velocity_estimate
 from .result import DiagnosisResult
 from .rules import COMMAND_MAP_BINS, COMMAND_MAP_SPAN, HOLDING_SPAN
 
-__all__ = ["EVIDENCE_PLOTS", "plot_evidence", "pyplot"]
+__all__ = ["plot_evidence", "pyplot"]
 
 
 def pyplot():
@@ -45,16 +48,6 @@ def _binned(x, y, bins=20):
             centres.append(x[m].mean())
             means.append(y[m].mean())
     return np.array(centres), np.array(means)
-
-
-#: which evidence plot shows each effect's signature (the residual over time for any other effect): the
-#: signature its ``evidence`` text reads (an Effect fact the contract does not declare yet)
-EVIDENCE_PLOTS = {
-    "friction_asymmetry": "direction", "external_load": "position",
-    "pressure_dependent_friction": "pressure difference", "supply_pressure_droop": "pressure difference",
-    "transport_delay": "lag", "valve_dynamics": "lag", "valve_deadband": "command map", "valve_offset": "command map",
-    "leakage": "holding", "heat_transfer": "holding",
-}
 
 
 def _binned_residuals(ax, x, residuals, xlabel: str, ylabel: str, title: str) -> None:
@@ -108,11 +101,7 @@ def _plot_lag(ax, result, v, x, e_nom, e_fin, nom, fin):
 
 
 def _plot_command_map(ax, result, v, x, e_nom, e_fin, nom, fin):
-    rig = result.nominal_fit.rig
-    u = result.nominal_fit.recording.valve_cmd_V
-    null = float(rig.params.get("valve_null_V", 5.0))
-    span = float(rig.params.get("valve_max_V", 10.0) - rig.params.get("valve_min_V", 0.0))
-    near = np.abs(u - null) <= COMMAND_MAP_SPAN * span
+    u, null, span, near = _near_null(result, COMMAND_MAP_SPAN)
     for vv, c, lab in ((v, "0.2", "measured"), (nom["velocity_m_per_s"], "C0", "nominal"),
                        (fin["velocity_m_per_s"], "C2", "with findings")):
         cx, cy = _binned(u[near], vv[near] * 1e3, bins=COMMAND_MAP_BINS)
@@ -147,11 +136,7 @@ def _plot_holding(ax, result, v, x, e_nom, e_fin, nom, fin):
     """Creep while holding: the velocity where the valve is near null (within :data:`~.rules.HOLDING_SPAN` of its
     span), binned by position, measured against the models; a leak or a slow pressure drift moves the piston
     there, the nominal model holds it still."""
-    rig = result.nominal_fit.rig
-    u = result.nominal_fit.recording.valve_cmd_V
-    null = float(rig.params.get("valve_null_V", 5.0))
-    span = float(rig.params.get("valve_max_V", 10.0) - rig.params.get("valve_min_V", 0.0))
-    holding = np.abs(u - null) <= HOLDING_SPAN * span
+    _, _, span, holding = _near_null(result, HOLDING_SPAN)
     if holding.sum() < 60:          # never near null: the residual over time says more
         _plot_over_time(ax, result, v, x, e_nom, e_fin, nom, fin)
         return
@@ -167,13 +152,80 @@ def _plot_holding(ax, result, v, x, e_nom, e_fin, nom, fin):
                  " mm/s beyond the nominal model)", fontsize=9)
 
 
-_PLOTS = {"holding": _plot_holding, "direction": _plot_direction, "position": _plot_position, "pressure difference": _plot_pressure_difference,
-          "lag": _plot_lag, "command map": _plot_command_map}
+def _since_stop(held: np.ndarray, time_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(since_s, stop, start)``: for each sample of a run of ``held`` samples that follows motion, the time since
+    the run began, the index of its first sample and the index where the motion before it began (NaN and -1
+    elsewhere, and on a run the recording starts with)."""
+    since, stop, start = np.full(held.size, np.nan), np.full(held.size, -1), np.full(held.size, -1)
+    k, moved_from = 0, 0
+    while k < held.size:
+        if not held[k]:
+            k += 1
+            continue
+        end = k
+        while end < held.size and held[end]:
+            end += 1
+        if k > 0:                                    # a run the recording starts with follows no move
+            since[k:end], stop[k:end], start[k:end] = time_s[k:end] - time_s[k], k, moved_from
+        k = moved_from = end
+    return since, stop, start
 
 
-def plot_evidence(result: DiagnosisResult, k: int, path) -> Path:
+def _plot_relaxation(ax, result, v, x, e_nom, e_fin, nom, fin):
+    """Relaxation after moves: how far the residual has moved since the valve came back near null (within
+    :data:`~.rules.HOLDING_SPAN` of its span), against the time since then.  Heat exchange with the walls lets a
+    chamber's pressure settle back after each move, for a few time constants; a model without it holds the pressure
+    where the move left it, and its residual grows there.  The change is signed by the measured change over the move
+    before (the sample before the stop, so that the stop's own noise does not choose the sign), so that the sensor
+    noise averages out; the chamber pressures where recorded (the mean of both), the position otherwise."""
+    rec = result.nominal_fit.recording
+    _, _, _, near = _near_null(result, HOLDING_SPAN)
+    since, stop, start = _since_stop(near, rec.time_s)
+    held = stop >= 0
+    if held.sum() < 60:             # hardly ever back at null after a move: the residual over time says more
+        _plot_over_time(ax, result, v, x, e_nom, e_fin, nom, fin)
+        return
+    names = ("pressure_a_Pa", "pressure_b_Pa") if rec.has_pressures else ("position_m",)
+    scale, unit = (1e-3, "kPa") if rec.has_pressures else (1e3, "mm")
+
+    def settled(states):
+        """Mean over ``names`` of the residual's change since the stop, signed by the measured change over the
+        move, at the held samples."""
+        out = []
+        for n in names:
+            measured = getattr(rec, n)
+            residual = measured - states[n]
+            out.append(((residual - residual[stop]) * np.sign(measured[stop - 1] - measured[start]))[held])
+        return np.mean(out, axis=0) * scale
+
+    signal = "pressure" if rec.has_pressures else "position"
+    _binned_residuals(ax, since[held], [(settled(nom), "C0", "nominal"), (settled(fin), "C2", "with findings")],
+                      "time since the valve came back near null (s)",
+                      f"{signal} residual's change since then,\nsigned by the move's {signal} change ({unit})",
+                      f"relaxation after moves ({len(np.unique(stop[held]))} stops): a model that misses it drifts "
+                      "from zero")
+    ax.axhline(0.0, color="0.5", lw=0.5)
+
+
+def _near_null(result, fraction: float):
+    """``(command, null, span, near)``: the recorded valve command (V), the rig's null and span (V), and where the
+    command is within ``fraction`` of the span of null (N,) bool."""
+    rig = result.nominal_fit.rig
+    u = result.nominal_fit.recording.valve_cmd_V
+    null = float(rig.params.get("valve_null_V", 5.0))
+    span = float(rig.params.get("valve_max_V", 10.0) - rig.params.get("valve_min_V", 0.0))
+    return u, null, span, np.abs(u - null) <= fraction * span
+
+
+_PLOTS = {"holding": _plot_holding, "direction": _plot_direction, "position": _plot_position,
+          "pressure difference": _plot_pressure_difference, "lag": _plot_lag, "command map": _plot_command_map,
+          "relaxation": _plot_relaxation, "over time": _plot_over_time}
+
+
+def plot_evidence(result: DiagnosisResult, k: int, path, kind: str | None = None) -> Path:
     """The evidence of finding ``k``: the signature before (nominal) and after (with the findings up to k),
-    as :data:`EVIDENCE_PLOTS` says for its effect."""
+    the plot its effect names (``Effect.evidence_plot``; ``kind``: another of
+    :data:`~pneusim.model.effects.EVIDENCE_PLOTS` instead)."""
     plt = pyplot()
     eff = result.findings[k].effect
     rec = result.nominal_fit.recording
@@ -183,7 +235,9 @@ def plot_evidence(result: DiagnosisResult, k: int, path) -> Path:
     e_nom = v - velocity_estimate(t, np.nan_to_num(nom["position_m"]))
     e_fin = v - velocity_estimate(t, np.nan_to_num(fin["position_m"]))
     fig, ax = plt.subplots(figsize=(7, 4.2))
-    plot = _PLOTS.get(EVIDENCE_PLOTS.get(eff), _plot_over_time)
+    if kind is None:
+        kind = EFFECTS[eff].evidence_plot if eff in EFFECTS else "over time"     # ``other``: over time
+    plot = _PLOTS[kind]
     plot(ax, result, v, x, e_nom, e_fin, nom, fin)
     ax.legend(fontsize=8)
     fig.suptitle(f"{k + 1}. {eff}", fontsize=10)

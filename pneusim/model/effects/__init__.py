@@ -5,7 +5,7 @@ diagnosis screens it); :mod:`.base` holds the contract and :mod:`.registry` the 
 ``docs/adding-an-effect.md``.
 """
 
-from .base import (LOOK_ALIKE_FAMILIES, NON_NEGATIVE, POSITIVE, POSITIVE_NEAR_START, REQUIRED, Effect,
+from .base import (EVIDENCE_PLOTS, LOOK_ALIKE_FAMILIES, NON_NEGATIVE, POSITIVE, POSITIVE_NEAR_START, REQUIRED, Effect,
                    ScreeningStart, in_range, missing_facts, number_text, range_words)
 from .external_load import ExternalLoad
 from .friction_asymmetry import FrictionAsymmetry
@@ -20,7 +20,7 @@ from .valve_dynamics import ValveDynamics
 from .valve_offset import ValveOffset
 
 __all__ = ["Effect", "EFFECTS", "make_effect", "parse_effect_text", "seal_pressure_factor", "effect_class",
-           "families", "ScreeningStart", "LOOK_ALIKE_FAMILIES", "REQUIRED", "missing_facts", "in_range",
+           "families", "ScreeningStart", "LOOK_ALIKE_FAMILIES", "EVIDENCE_PLOTS", "REQUIRED", "missing_facts", "in_range",
            "range_words", "number_text", "POSITIVE", "NON_NEGATIVE", "POSITIVE_NEAR_START",
            "PRESSURE_SMOOTHING_PA", "Leakage", "ValveDeadband", "ValveOffset", "ValveDynamics",
            "TransportDelay", "HeatTransfer", "FrictionAsymmetry", "SupplyPressureDroop", "ExternalLoad",

@@ -34,7 +34,7 @@ from typing import Mapping, Sequence
 
 from ...errors import PneusimError
 
-__all__ = ["Effect", "ScreeningStart", "REQUIRED", "LOOK_ALIKE_FAMILIES", "POSITIVE", "NON_NEGATIVE",
+__all__ = ["Effect", "ScreeningStart", "REQUIRED", "LOOK_ALIKE_FAMILIES", "EVIDENCE_PLOTS", "POSITIVE", "NON_NEGATIVE",
            "POSITIVE_NEAR_START", "in_range", "range_words", "missing_facts", "number_text"]
 
 
@@ -55,6 +55,20 @@ LOOK_ALIKE_FAMILIES = {
     "friction and force": "a force in the piston's balance that depends on direction, position or pressure",
     "valve null": "the valve's behaviour around its null (where it opens, how far from nominal)",
     "slow pneumatic": "chamber pressures that drift or sag slowly (leaks, heat exchange, the supply line)",
+}
+
+#: the evidence plots a diagnosis report draws (:mod:`pneusim.diagnosis.evidence`), each a signature before and after
+#: the findings: an effect names the one that identifies it (``evidence_plot``)
+EVIDENCE_PLOTS = {
+    "direction": "the velocity residual against the direction of motion (friction that differs each way)",
+    "position": "the velocity residual against position (a force that depends on where the piston is)",
+    "pressure difference": "the velocity residual's magnitude against the pressure difference across the seal",
+    "lag": "the cross-correlation of command and residual increments against lag (the response comes late)",
+    "command map": "the velocity against the command near null (a flat spot, or a shifted crossing)",
+    "holding": "the velocity with the valve near null against position (creep while holding)",
+    "relaxation": "the pressure residual against the time since the piston stopped (a slow relaxation after moves); "
+                  "the velocity residual where no pressures were recorded",
+    "over time": "the residuals against time",
 }
 
 
@@ -121,6 +135,9 @@ class Effect:
     data_sheet_start: tuple[str, float] | None = REQUIRED
     #: True when the screening starts away from the nominal model: it gets more trust-region evaluations
     scanned: bool = False
+    #: the report's evidence plot of a finding of this effect, one of :data:`EVIDENCE_PLOTS`: the signature that
+    #: identifies it, before and after the findings
+    evidence_plot: str = "over time"
     #: False when the effect is left out of the pairs pre-fitted together on the mismatch window (it is pre-fitted
     #: there alone as every effect is): its own states, fitted freely on a window, absorb whatever else is missing
     window_pairs: bool = True

@@ -35,6 +35,7 @@ class ExternalLoad(Effect):
     fit_scale = {"force_N": (50.0, None, None), "stiffness_N_per_m": (500.0, None, None)}
 
     family = "friction and force"
+    evidence_plot = "position"
     neutral = {"force_N": 0.0, "stiffness_N_per_m": 0.0}
     #: the screening from the data sheet runs each start to its end: from no load
     data_sheet_start = ("force_N", 0.0)

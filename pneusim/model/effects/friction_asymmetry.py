@@ -35,6 +35,7 @@ class FrictionAsymmetry(Effect):
     fit_scale = {"retract_factor": (1.0, 0.05, 20.0)}
 
     family = "friction and force"
+    evidence_plot = "direction"
     neutral = {"retract_factor": 1.0}
     #: the screening from the data sheet runs each start to its end: from the nominal model
     data_sheet_start = ("retract_factor", 1.0)

@@ -35,6 +35,7 @@ class HeatTransfer(Effect):
     fit_scale = {"time_constant_s": (None, 1e-3, 100.0), "wall_temperature_K": (293.15, 200.0, 400.0)}
 
     family = "slow pneumatic"
+    evidence_plot = "relaxation"
     #: the chamber temperatures become states: never the nominal model, not retried from a neutral value
     neutral = None
     #: the screening from the data sheet runs each start to its end: the faster one stands for both

@@ -35,6 +35,7 @@ class Leakage(Effect):
     fit_scale = {"conductance_kg_per_s_Pa": (1e-9, 0.0, None)}
 
     family = "slow pneumatic"
+    evidence_plot = "holding"
     neutral = {"conductance_kg_per_s_Pa": SCREENING_CONDUCTANCE_KG_PER_S_PA}
     #: every leak path is different physics: the screening from the data sheet keeps all three
     data_sheet_start = None

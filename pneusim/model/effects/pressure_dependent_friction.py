@@ -70,6 +70,7 @@ class PressureDependentFriction(Effect):
     fit_scale = {"pressure_coefficient": (1.0, 0.0, 20.0)}
 
     family = "friction and force"
+    evidence_plot = "pressure difference"
     neutral = {"pressure_coefficient": SCREENING_COEFFICIENT}
     data_sheet_start = None   # one start only
 

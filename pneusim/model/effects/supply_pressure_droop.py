@@ -38,6 +38,7 @@ class SupplyPressureDroop(Effect):
     fit_scale = {"supply_volume_m3": POSITIVE_NEAR_START, "supply_conductance_m3_per_s_Pa": POSITIVE_NEAR_START}
 
     family = "slow pneumatic"
+    evidence_plot = "pressure difference"
     #: a supply line of any size adds a state and is never the nominal model: not retried from a neutral value
     neutral = None
     #: the screening from the data sheet runs each start to its end: the narrow line, the one that sags

@@ -36,6 +36,7 @@ class TransportDelay(Effect):
     fit_scale = {"delay_s": (0.01, 0.0, 0.5)}
 
     family = "timing"
+    evidence_plot = "lag"
     #: every delay moves the response; the screening scans delays rather than starting from none
     neutral = None
     #: a delay has no gradient: every delay of the scan is pre-fitted

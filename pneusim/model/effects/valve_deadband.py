@@ -29,6 +29,7 @@ class ValveDeadband(Effect):
     fit_scale = {"deadband_V": (0.2, 0.0, 2.5)}
 
     family = "valve null"
+    evidence_plot = "command map"
     neutral = {"deadband_V": SCREENING_DEADBAND_V}
     data_sheet_start = None   # one start only
 

@@ -42,6 +42,7 @@ class ValveDynamics(Effect):
     fit_scale = {"natural_frequency_Hz": (None, 0.5, 300.0), "damping": (0.7, 0.2, 5.0)}
 
     family = "timing"
+    evidence_plot = "lag"
     #: a spool lag adds two states and is never the nominal model: a refit is not retried from a neutral value
     neutral = None
     #: the screening from the data sheet runs each start to its end: the middle frequency stands for all

@@ -24,6 +24,7 @@ class ValveOffset(Effect):
     fit_scale = {"offset_V": (0.1, -2.0, 2.0)}
 
     family = "valve null"
+    evidence_plot = "command map"
     neutral = {"offset_V": 0.0}
     data_sheet_start = None   # one start only
 

@@ -8,6 +8,7 @@ sheet, 20 s of open-loop pulses with both pressures); the effects are switched o
 
 import math
 
+import numpy as np
 import pytest
 from test_diagnosis import _simulate
 
@@ -88,6 +89,42 @@ def test_the_report_draws_every_plot_with_its_axes_labelled(two_effects, tmp_pat
     assert "without the findings | with the findings" in text and "zoom.png" in text
     assert "Physics left out**, most important first: `external_load`, `valve_deadband`" in text
     assert index.read_text().count("<img") == 5
+
+
+@pytest.mark.minutes
+def test_every_evidence_plot_an_effect_can_name_draws_with_its_axes_labelled(two_effects, tmp_path, monkeypatch):
+    """Each kind of :data:`~pneusim.model.effects.EVIDENCE_PLOTS` is drawn (the evidence module has one function
+    for each), with both axes labelled and both models' curves, on the two-effect diagnosis."""
+    from pneusim.diagnosis import evidence
+    from pneusim.model.effects import EVIDENCE_PLOTS
+
+    drawn = {}
+    save = evidence.savefig_atomic
+
+    def recording_savefig(fig, path, **kwargs):
+        ax = fig.axes[0]
+        drawn[path.stem] = (ax.get_xlabel(), ax.get_ylabel(), [line.get_label() for line in ax.get_lines()])
+        return save(fig, path, **kwargs)
+
+    monkeypatch.setattr(evidence, "savefig_atomic", recording_savefig)
+    for kind in EVIDENCE_PLOTS:
+        evidence.plot_evidence(two_effects, 0, tmp_path / f"{kind}.png", kind=kind)
+    assert set(drawn) == set(EVIDENCE_PLOTS)
+    for kind, (xlabel, ylabel, labels) in drawn.items():
+        assert xlabel and ylabel, kind
+        assert {"nominal", "with findings"} <= set(labels), (kind, labels)
+
+
+def test_the_time_since_the_piston_stopped_counts_from_each_stop_after_a_move():
+    """The relaxation plot's clock: each run of held samples after motion starts at zero and knows where that
+    motion began; a run the recording starts with follows no move and is left out."""
+    from pneusim.diagnosis.evidence import _since_stop
+
+    held = np.array([1, 1, 0, 0, 1, 1, 1, 0, 1], bool)
+    since, stop, start = _since_stop(held, 0.5 * np.arange(held.size))
+    assert np.array_equal(stop, [-1, -1, -1, -1, 4, 4, 4, -1, 8])
+    assert np.array_equal(start, [-1, -1, -1, -1, 2, 2, 2, -1, 7])     # where the motion before each run began
+    assert np.allclose(since[4:7], [0.0, 0.5, 1.0]) and since[8] == 0.0 and np.isnan(since[:4]).all()
 
 
 @pytest.mark.minutes

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from pneusim.model import ActuatorModel, RIG_PARAMETERS
-from pneusim.model.effects import (EFFECTS, LOOK_ALIKE_FAMILIES, Effect, ScreeningStart, in_range,
+from pneusim.model.effects import (EFFECTS, EVIDENCE_PLOTS, LOOK_ALIKE_FAMILIES, Effect, ScreeningStart, in_range,
                                    missing_facts)
 from pneusim.rig import load_rig
 
@@ -84,6 +84,7 @@ def test_what_the_fit_frees_is_the_effects_own_and_has_a_scale_and_bounds(cls):
 @effects
 def test_the_diagnosis_facts_are_well_formed(cls, rigs):
     assert cls.family in LOOK_ALIKE_FAMILIES
+    assert cls.evidence_plot in EVIDENCE_PLOTS
     assert isinstance(cls.scanned, bool)
     if cls.neutral is not None:
         assert cls.neutral and set(cls.neutral) <= set(cls.parameters)
