@@ -16,6 +16,7 @@ from ..model.effects import EFFECTS
 from ..outputs import savefig_atomic
 from .locate import named_states, velocity_estimate
 from .result import DiagnosisResult
+from .signatures import hold_runs, settling
 from .rules import COMMAND_MAP_BINS, COMMAND_MAP_SPAN, HOLDING_SPAN
 
 __all__ = ["plot_evidence", "pyplot"]
@@ -152,35 +153,16 @@ def _plot_holding(ax, result, v, x, e_nom, e_fin, nom, fin):
                  " mm/s beyond the nominal model)", fontsize=9)
 
 
-def _since_stop(held: np.ndarray, time_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(since_s, stop, start)``: for each sample of a run of ``held`` samples that follows motion, the time since
-    the run began, the index of its first sample and the index where the motion before it began (NaN and -1
-    elsewhere, and on a run the recording starts with)."""
-    since, stop, start = np.full(held.size, np.nan), np.full(held.size, -1), np.full(held.size, -1)
-    k, moved_from = 0, 0
-    while k < held.size:
-        if not held[k]:
-            k += 1
-            continue
-        end = k
-        while end < held.size and held[end]:
-            end += 1
-        if k > 0:                                    # a run the recording starts with follows no move
-            since[k:end], stop[k:end], start[k:end] = time_s[k:end] - time_s[k], k, moved_from
-        k = moved_from = end
-    return since, stop, start
-
-
 def _plot_relaxation(ax, result, v, x, e_nom, e_fin, nom, fin):
     """Relaxation after moves: how far the residual has moved since the valve came back near null (within
     :data:`~.rules.HOLDING_SPAN` of its span), against the time since then.  Heat exchange with the walls lets a
     chamber's pressure settle back after each move, for a few time constants; a model without it holds the pressure
-    where the move left it, and its residual grows there.  The change is signed by the measured change over the move
-    before (the sample before the stop, so that the stop's own noise does not choose the sign), so that the sensor
-    noise averages out; the chamber pressures where recorded (the mean of both), the position otherwise."""
+    where the move left it, and its residual grows there (:func:`~.signatures.settling`: signed by the move's own
+    change, so that the sensor noise averages out); the chamber pressures where recorded (the mean of both), the
+    position otherwise."""
     rec = result.nominal_fit.recording
     _, _, _, near = _near_null(result, HOLDING_SPAN)
-    since, stop, start = _since_stop(near, rec.time_s)
+    since, stop, start = hold_runs(near, rec.time_s)
     held = stop >= 0
     if held.sum() < 60:             # hardly ever back at null after a move: the residual over time says more
         _plot_over_time(ax, result, v, x, e_nom, e_fin, nom, fin)
@@ -189,14 +171,8 @@ def _plot_relaxation(ax, result, v, x, e_nom, e_fin, nom, fin):
     scale, unit = (1e-3, "kPa") if rec.has_pressures else (1e3, "mm")
 
     def settled(states):
-        """Mean over ``names`` of the residual's change since the stop, signed by the measured change over the
-        move, at the held samples."""
-        out = []
-        for n in names:
-            measured = getattr(rec, n)
-            residual = measured - states[n]
-            out.append(((residual - residual[stop]) * np.sign(measured[stop - 1] - measured[start]))[held])
-        return np.mean(out, axis=0) * scale
+        """Mean over ``names`` of :func:`~.signatures.settling` at the held samples."""
+        return np.mean([settling(getattr(rec, n), states[n], stop, start)[held] for n in names], axis=0) * scale
 
     signal = "pressure" if rec.has_pressures else "position"
     _binned_residuals(ax, since[held], [(settled(nom), "C0", "nominal"), (settled(fin), "C2", "with findings")],

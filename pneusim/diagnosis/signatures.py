@@ -19,8 +19,9 @@ driven by the recorded command, its parameters fitted to the recording), never f
   the piston than the large quarter, relative to the model (dead band);
 * ``null_shift_V`` -- command at which the measured velocity crosses zero (a line through the
   small-command samples), minus the model's (valve offset);
-* ``hold_pressure_drift_kPa_s`` -- mean rate of the pressure residual while holding still after a
-  move (heat transfer, leakage), when pressures were recorded;
+* ``hold_pressure_settling_kPa`` -- how far the pressure residual settles over a hold after a move
+  (the valve near null), signed by the move's own pressure change so that the sensor noise averages
+  out over holds, in magnitude (heat transfer, leakage), when pressures were recorded;
 * ``long_move_r`` -- correlation of the velocity residual's magnitude with the time the valve has
   been wide open (supply droop).
 """
@@ -34,7 +35,7 @@ import numpy as np
 from ..model.effects import EFFECTS
 from .locate import operating_conditions, velocity_estimate
 
-__all__ = ["compute_signatures", "evidence_text"]
+__all__ = ["compute_signatures", "evidence_text", "hold_runs", "settling"]
 
 
 def _corr(a, b) -> float:
@@ -98,6 +99,48 @@ def _null_shift(u_rel, v_meas, v_model, ok) -> float:
     return float(np.clip(cross_m - cross_s, -5, 5))
 
 
+def hold_runs(held: np.ndarray, time_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The holds after moves: ``(since_s, stop, start)``, for each sample of a run of ``held`` samples (N,) bool
+    that follows motion, the time since the run began, the index of its first sample and the index where the motion
+    before it began (NaN and -1 elsewhere, and on a run the recording starts with)."""
+    since, stop, start = np.full(held.size, np.nan), np.full(held.size, -1), np.full(held.size, -1)
+    k, moved_from = 0, 0
+    while k < held.size:
+        if not held[k]:
+            k += 1
+            continue
+        end = k
+        while end < held.size and held[end]:
+            end += 1
+        if k > 0:                                    # a run the recording starts with follows no move
+            since[k:end], stop[k:end], start[k:end] = time_s[k:end] - time_s[k], k, moved_from
+        k = moved_from = end
+    return since, stop, start
+
+
+def settling(measured: np.ndarray, model: np.ndarray, stop: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """The residual's change since each hold began (``stop``, ``start`` of :func:`hold_runs`), signed by the
+    measured change over the move before it (N,; meaningful where ``stop >= 0``).  The sign is read from the sample
+    before the stop, so that the stop's own noise does not choose it: the sensor noise then averages out over
+    holds, and what is left is how the model misses the way the signal settles after a move."""
+    residual = measured - model
+    return (residual - residual[stop]) * np.sign(measured[stop - 1] - measured[start])
+
+
+def _hold_pressure_settling(recording, model_states: dict, near_null: np.ndarray) -> float:
+    """kPa: how far the pressure residual settles over a hold after a move (the valve near null), in magnitude:
+    the mean over holds and both chambers of :func:`settling` over the hold's second half (NaN without holds)."""
+    since, stop, start = hold_runs(near_null, recording.time_s)
+    values = []
+    for k in np.unique(stop[stop >= 0]):
+        run = np.flatnonzero(stop == k)
+        late = run[since[run] >= 0.5 * since[run[-1]]]
+        if run.size >= 4:
+            values += [float(np.nanmean(settling(getattr(recording, n), model_states[n], stop, start)[late]))
+                       for n in ("pressure_a_Pa", "pressure_b_Pa")]
+    return abs(float(np.nanmean(values))) / 1e3 if values else float("nan")
+
+
 def compute_signatures(recording, rig, model_states: dict, velocity_model: np.ndarray) -> dict:
     """The signature numbers of the nominal model's residual (see the module docstring).
 
@@ -144,13 +187,7 @@ def compute_signatures(recording, rig, model_states: dict, velocity_model: np.nd
     out["small_command_speed_deficit"] = _small_command_speed_deficit(u_rel, v_meas, v_model, ok)
     out["null_shift_V"] = _null_shift(u_rel, v_meas, v_model, ok)
     if recording.has_pressures:
-        still = masks["holding still"] & ok
-        rates = []
-        for name in ("pressure_a_Pa", "pressure_b_Pa"):
-            res = getattr(recording, name) - model_states[name]
-            rate = np.gradient(res, dt)
-            rates.append(float(np.mean(np.abs(rate[still]))) / 1e3 if still.sum() > 10 else float("nan"))
-        out["hold_pressure_drift_kPa_s"] = float(np.nanmean(rates)) if np.isfinite(rates).any() else float("nan")
+        out["hold_pressure_settling_kPa"] = _hold_pressure_settling(recording, model_states, masks["valve near null"])
     wide = masks["large opening"]
     open_time = np.zeros(t.size)
     for k in range(1, t.size):

@@ -73,6 +73,6 @@ class HeatTransfer(Effect):
     @classmethod
     def evidence(cls, signatures):
         s = signatures
-        extra = (f"pressure residual drifts {number_text(s['hold_pressure_drift_kPa_s'], '.2f')} kPa/s while "
-                 "holding after moves; " if "hold_pressure_drift_kPa_s" in s else "")
+        extra = (f"pressure residual settles {number_text(s['hold_pressure_settling_kPa'], '.2f')} kPa over a hold "
+                 "after a move; " if "hold_pressure_settling_kPa" in s else "")
         return f"{extra}creep after stops {number_text(s['creep_mm_s'], '+.3f')} mm/s beyond the model"

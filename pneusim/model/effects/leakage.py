@@ -63,8 +63,8 @@ class Leakage(Effect):
     @classmethod
     def evidence(cls, signatures):
         s = signatures
-        extra = (f"; pressure residual drifts {number_text(s['hold_pressure_drift_kPa_s'], '.2f')} kPa/s while holding"
-                 if "hold_pressure_drift_kPa_s" in s else "")
+        extra = (f"; pressure residual settles {number_text(s['hold_pressure_settling_kPa'], '.2f')} kPa over a hold "
+                 "after a move" if "hold_pressure_settling_kPa" in s else "")
         return f"creep near null {number_text(s['creep_mm_s'], '+.3f')} mm/s beyond the model{extra}"
 
     @classmethod

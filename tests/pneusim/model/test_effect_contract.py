@@ -36,7 +36,7 @@ _DIMENSIONLESS = ("damping", "factor", "coefficient", "ratio")
 SIGNATURES = dict(direction_r=0.41, extend_mean_mm_s=-1.5, retract_mean_mm_s=2.25, position_r=-0.33,
                   pressure_r=0.71, long_move_r=0.2, lag_s=0.012, lag_r=0.5, flat_spot_V=0.042,
                   small_command_speed_deficit=0.37, null_shift_V=-0.12, creep_mm_s=0.75,
-                  hold_pressure_drift_kPa_s=1.23)
+                  hold_pressure_settling_kPa=1.23)
 
 effects = pytest.mark.parametrize("cls", list(EFFECTS.values()), ids=list(EFFECTS))
 
