@@ -16,8 +16,8 @@ from ..model.effects import EFFECTS
 from ..outputs import savefig_atomic
 from .locate import named_states, velocity_estimate
 from .result import DiagnosisResult
-from .signatures import hold_runs, settling
 from .rules import COMMAND_MAP_BINS, COMMAND_MAP_SPAN, HOLDING_SPAN
+from .signatures import hold_runs, settling
 
 __all__ = ["plot_evidence", "pyplot"]
 
