@@ -133,9 +133,8 @@ def scan_kept_delay(run) -> None:
     fit_d, c_d = run.refits[DELAY]
     best, scan = scan_with_refits(run, fit_d)
     trial = run.trials[DELAY]
-    text = ", ".join(f"{d * 1e3:.4g} ms {c:.0f}" for d, c, _ in scan)
     trial.seconds = (trial.seconds or 0.0) + sum(t for _, _, t in scan)
-    trial.status += f"; delay scan with refits (estimation residual by delay: {text}{_ended(best)}): "
+    trial.status += f"; delay scan with refits ({_scan_text(scan, best)}): "
     if best is fit_d:
         trial.status += "the kept delay is best"
         return
@@ -165,8 +164,7 @@ def scan_found_delay(run, final):
     trial = run.trials.get(DELAY)
     if trial is not None:
         trial.seconds = (trial.seconds or 0.0) + sum(t for _, _, t in scan)
-        trial.status += ("; delay scan with refits, the other findings present (estimation residual by delay: "
-                         + ", ".join(f"{d * 1e3:.4g} ms {c:.0f}" for d, c, _ in scan) + _ended(best) + ")")
+        trial.status += f"; delay scan with refits, the other findings present ({_scan_text(scan, best)})"
     return best
 
 
@@ -261,10 +259,12 @@ def scan_with_refits(run, kept_fit):
     return best_fit, scan
 
 
-def _ended(best_fit) -> str:
-    """The scan's status text where the time budget ended it before its refits did (``best_fit``: its result)."""
+def _scan_text(scan, best_fit) -> str:
+    """The estimation residual by delay of ``scan`` (:func:`scan_with_refits`'s), and where the time budget ended
+    it before its refits did, why (``best_fit``: its result)."""
     ended = (getattr(best_fit, "solver", None) or {}).get("delay_scan", {}).get("ended")
-    return f"; the scan ended there, {ended}" if ended else ""
+    return ("estimation residual by delay: " + ", ".join(f"{d * 1e3:.4g} ms {c:.0f}" for d, c, _ in scan)
+            + (f"; the scan ended there, {ended}" if ended else ""))
 
 
 def _standard_error(delays, costs, best: int, n_residuals: int) -> float | None:

@@ -131,13 +131,14 @@ def _hold_pressure_settling(recording, model_states: dict, near_null: np.ndarray
     """kPa: how far the pressure residual settles over a hold after a move (the valve near null), in magnitude:
     the mean over holds and both chambers of :func:`settling` over the hold's second half (NaN without holds)."""
     since, stop, start = hold_runs(near_null, recording.time_s)
+    settled = [settling(getattr(recording, name), model_states[name], stop, start)
+               for name in ("pressure_a_Pa", "pressure_b_Pa")]
     values = []
     for k in np.unique(stop[stop >= 0]):
         run = np.flatnonzero(stop == k)
-        late = run[since[run] >= 0.5 * since[run[-1]]]
         if run.size >= 4:
-            values += [float(np.nanmean(settling(getattr(recording, n), model_states[n], stop, start)[late]))
-                       for n in ("pressure_a_Pa", "pressure_b_Pa")]
+            late = run[since[run] >= 0.5 * since[run[-1]]]
+            values += [float(np.nanmean(chamber[late])) for chamber in settled]
     return abs(float(np.nanmean(values))) / 1e3 if values else float("nan")
 
 

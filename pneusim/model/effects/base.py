@@ -66,8 +66,8 @@ EVIDENCE_PLOTS = {
     "lag": "the cross-correlation of command and residual increments against lag (the response comes late)",
     "command map": "the velocity against the command near null (a flat spot, or a shifted crossing)",
     "holding": "the velocity with the valve near null against position (creep while holding)",
-    "relaxation": "the pressure residual against the time since the piston stopped (a slow relaxation after moves); "
-                  "the velocity residual where no pressures were recorded",
+    "relaxation": "the pressure residual's change against the time since the valve came back near null after a "
+                  "move (a slow relaxation); the position residual's where no pressures were recorded",
     "over time": "the residuals against time",
 }
 
