@@ -14,9 +14,9 @@ import numpy as np
 
 from ..model.effects import EFFECTS
 from ..outputs import savefig_atomic
-from .locate import named_states, velocity_estimate
+from .locate import named_states, near_null, valve_null_and_span, velocity_estimate
 from .result import DiagnosisResult
-from .rules import COMMAND_MAP_BINS, COMMAND_MAP_SPAN, HOLDING_SPAN
+from .rules import COMMAND_MAP_BINS, COMMAND_MAP_SPAN, NEAR_NULL_SPAN
 from .signatures import hold_runs, settling
 
 __all__ = ["plot_evidence", "pyplot"]
@@ -134,10 +134,10 @@ def _plot_over_time(ax, result, v, x, e_nom, e_fin, nom, fin):
 
 
 def _plot_holding(ax, result, v, x, e_nom, e_fin, nom, fin):
-    """Creep while holding: the velocity where the valve is near null (within :data:`~.rules.HOLDING_SPAN` of its
+    """Creep while holding: the velocity where the valve is near null (within :data:`~.rules.NEAR_NULL_SPAN` of its
     span), binned by position, measured against the models; a leak or a slow pressure drift moves the piston
     there, the nominal model holds it still."""
-    _, _, span, holding = _near_null(result, HOLDING_SPAN)
+    _, _, span, holding = _near_null(result, NEAR_NULL_SPAN)
     if holding.sum() < 60:          # never near null: the residual over time says more
         _plot_over_time(ax, result, v, x, e_nom, e_fin, nom, fin)
         return
@@ -148,20 +148,20 @@ def _plot_holding(ax, result, v, x, e_nom, e_fin, nom, fin):
     ax.axhline(0.0, color="0.5", lw=0.5)
     ax.set_xlabel("position (mm)")
     ax.set_ylabel("binned mean velocity (mm/s)")
-    ax.set_title(f"creep while holding: velocity with the valve within {HOLDING_SPAN * span:.2g} V of null\n"
+    ax.set_title(f"creep while holding: velocity with the valve within {NEAR_NULL_SPAN * span:.2g} V of null\n"
                  f"({int(holding.sum())} samples; creep near null {result.signatures.get('creep_mm_s', float('nan')):+.3f}"
                  " mm/s beyond the nominal model)", fontsize=9)
 
 
 def _plot_relaxation(ax, result, v, x, e_nom, e_fin, nom, fin):
     """Relaxation after moves: how far the residual has moved since the valve came back near null (within
-    :data:`~.rules.HOLDING_SPAN` of its span), against the time since then.  Heat exchange with the walls lets a
+    :data:`~.rules.NEAR_NULL_SPAN` of its span), against the time since then.  Heat exchange with the walls lets a
     chamber's pressure settle back after each move, for a few time constants; a model without it holds the pressure
     where the move left it, and its residual grows there (:func:`~.signatures.settling`: signed by the move's own
     change, so that the sensor noise averages out); the chamber pressures where recorded (the mean of both), the
     position otherwise."""
     rec = result.nominal_fit.recording
-    _, _, _, near = _near_null(result, HOLDING_SPAN)
+    _, _, _, near = _near_null(result, NEAR_NULL_SPAN)
     since, stop, start = hold_runs(near, rec.time_s)
     held = stop >= 0
     if held.sum() < 60:             # hardly ever back at null after a move: the residual over time says more
@@ -185,12 +185,11 @@ def _plot_relaxation(ax, result, v, x, e_nom, e_fin, nom, fin):
 
 def _near_null(result, fraction: float):
     """``(command, null, span, near)``: the recorded valve command (V), the rig's null and span (V), and where the
-    command is within ``fraction`` of the span of null (N,) bool."""
+    command is within ``fraction`` of the span of null (N,) bool (:func:`.locate.near_null`)."""
     rig = result.nominal_fit.rig
     u = result.nominal_fit.recording.valve_cmd_V
-    null = float(rig.params.get("valve_null_V", 5.0))
-    span = float(rig.params.get("valve_max_V", 10.0) - rig.params.get("valve_min_V", 0.0))
-    return u, null, span, np.abs(u - null) <= fraction * span
+    null, span = valve_null_and_span(rig)
+    return u, null, span, near_null(u, rig, fraction)
 
 
 _PLOTS = {"holding": _plot_holding, "direction": _plot_direction, "position": _plot_position,

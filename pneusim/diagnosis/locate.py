@@ -16,10 +16,13 @@ import numpy as np
 from scipy import stats
 
 from .result import MismatchWindow
-from .rules import (EPISODE_GAP, EPISODE_LENGTH, FALSE_ALARM, LOCATE_WINDOW_S, LOCATE_WINDOW_SAMPLES, MAX_EPISODES,
-                    MAX_WINDOWS)
+from .rules import (CONDITION_SHARE, END_STOP_STROKE, EPISODE_GAP, EPISODE_LENGTH, FALSE_ALARM, FAST_CHANGE_S,
+                    FAST_CHANGE_SPAN, HIGH_PRESSURE_SUPPLY, LARGE_OPENING_HALF_SPAN, LOCATE_WINDOW_S,
+                    LOCATE_WINDOW_SAMPLES, LOW_PRESSURE_ATMOSPHERES, MAX_EPISODES, MAX_WINDOWS, MOVING_STROKE,
+                    NEAR_NULL_SPAN, REVERSAL_S, REVERSAL_SHARE)
 
-__all__ = ["operating_conditions", "locate_mismatch", "velocity_estimate", "named_states", "episodes"]
+__all__ = ["operating_conditions", "locate_mismatch", "velocity_estimate", "named_states", "episodes",
+           "valve_null_and_span", "near_null", "moving_speed"]
 
 
 def named_states(fit) -> dict:
@@ -41,23 +44,41 @@ def velocity_estimate(time_s: np.ndarray, position_m: np.ndarray, window_s: floa
     return savgol_filter(position_m, w, 2, deriv=1, delta=dt)
 
 
+def valve_null_and_span(rig) -> tuple[float, float]:
+    """``(null, span)``: the rig's valve null and the span of its command range, V."""
+    null = float(rig.params.get("valve_null_V", 5.0))
+    span = float(rig.params.get("valve_max_V", 10.0) - rig.params.get("valve_min_V", 0.0))
+    return null, span
+
+
+def near_null(command_V: np.ndarray, rig, fraction: float = NEAR_NULL_SPAN) -> np.ndarray:
+    """Where the valve command (N,) is within ``fraction`` of the valve's span of its null (N,) bool; the
+    operating condition "valve near null" at the default :data:`~.rules.NEAR_NULL_SPAN`."""
+    null, span = valve_null_and_span(rig)
+    return np.abs(command_V - null) < fraction * span
+
+
+def moving_speed(rig) -> float:
+    """The speed above which the piston counts as moving, m/s (:data:`~.rules.MOVING_STROKE` of its stroke a
+    second)."""
+    return MOVING_STROKE * rig.stroke_m
+
+
 def operating_conditions(recording, rig, velocity_m_per_s: np.ndarray | None = None) -> dict:
     """Boolean masks (N,) of the operating conditions named in ``diagnosis.md``.
 
-    Thresholds are fractions of the rig's data sheet: speeds of 1 % of the stroke per second count
-    as motion, a command within 2 % of the valve's span of its null is "near null", beyond 40 % a
-    "large opening", 5 % of the stroke from an end is "near an end stop", a chamber above 80 % of
-    supply (absolute) "high pressure", below 1.3 atmospheres "low pressure", and a command change of
-    more than 10 % of the span within the last 50 ms "fast command change".
+    Thresholds are fractions of the rig's data sheet, each a rule of :mod:`.rules` ("the operating conditions"):
+    the speed that counts as motion, how close to null the valve is "near null", how far from it a "large
+    opening", how close to an end "near an end stop", a chamber pressure "high" (of supply) or "low" (in
+    atmospheres), and how large and how recent a command change is a "fast command change".
     """
     t = recording.time_s
     x = recording.position_m
     u = recording.valve_cmd_V
     stroke = rig.stroke_m
     v = velocity_estimate(t, x) if velocity_m_per_s is None else velocity_m_per_s
-    v_moving = 0.01 * stroke
-    null = float(rig.params.get("valve_null_V", 5.0))
-    span = float(rig.params.get("valve_max_V", 10.0) - rig.params.get("valve_min_V", 0.0))
+    v_moving = moving_speed(rig)
+    null, span = valve_null_and_span(rig)
     dt = float(t[1] - t[0])
     sign = np.sign(np.where(np.abs(v) > v_moving, v, 0.0))
     last = np.zeros_like(sign)
@@ -68,28 +89,29 @@ def operating_conditions(recording, rig, velocity_m_per_s: np.ndarray | None = N
         last[k] = current
     reversal = np.zeros(x.size, bool)
     flips = np.flatnonzero((np.diff(last) != 0) & (last[:-1] != 0)) + 1
-    half = max(1, int(round(0.05 / dt)))
+    half = max(1, int(round(REVERSAL_S / dt)))
     for k in flips:
         reversal[max(0, k - half):k + half] = True
     du = np.abs(np.diff(u, prepend=u[0]))
-    lookback = max(1, int(round(0.05 / dt)))
-    fast = np.convolve((du > 0.1 * span).astype(float), np.ones(lookback), mode="full")[:x.size] > 0
+    lookback = max(1, int(round(FAST_CHANGE_S / dt)))
+    fast = np.convolve((du > FAST_CHANGE_SPAN * span).astype(float), np.ones(lookback), mode="full")[:x.size] > 0
     masks = {
         "extending": v > v_moving,
         "retracting": v < -v_moving,
         "holding still": np.abs(v) <= v_moving,
         "velocity reversal": reversal,
-        "valve near null": np.abs(u - null) < 0.02 * span,
-        "large opening": np.abs(u - null) > 0.4 * span / 2,
-        "near an end stop": (x < 0.05 * stroke) | (x > 0.95 * stroke),
+        "valve near null": near_null(u, rig),
+        "large opening": np.abs(u - null) > LARGE_OPENING_HALF_SPAN * span / 2,
+        "near an end stop": (x < END_STOP_STROKE * stroke) | (x > (1 - END_STOP_STROKE) * stroke),
         "right after a fast command change": fast,
     }
     if recording.has_pressures:
         supply = float(rig.params["supply_Pa"])
         atm = float(rig.params.get("atmosphere_Pa", 101325.0))
         pa, pb = recording.pressure_a_Pa, recording.pressure_b_Pa
-        masks["high chamber pressure"] = (pa > 0.8 * supply) | (pb > 0.8 * supply)
-        masks["low chamber pressure"] = (pa < 1.3 * atm) | (pb < 1.3 * atm)
+        high, low = HIGH_PRESSURE_SUPPLY * supply, LOW_PRESSURE_ATMOSPHERES * atm
+        masks["high chamber pressure"] = (pa > high) | (pb > high)
+        masks["low chamber pressure"] = (pa < low) | (pb < low)
     return masks
 
 
@@ -98,12 +120,12 @@ def _describe(masks: dict, a: int, b: int) -> str:
     share = {name: float(np.mean(m[a:b])) for name, m in masks.items()}
     direction = max(("extending", "retracting", "holding still"), key=lambda k: share[k])
     words = []
-    if share["velocity reversal"] > 0.2:
+    if share["velocity reversal"] > REVERSAL_SHARE:
         words.append("velocity reversal")
     words.append(direction)
     for name in ("valve near null", "large opening", "near an end stop", "high chamber pressure",
                  "low chamber pressure", "right after a fast command change"):
-        if share.get(name, 0.0) > 0.5:
+        if share.get(name, 0.0) > CONDITION_SHARE:
             words.append(name)
     return ", ".join(words)
 

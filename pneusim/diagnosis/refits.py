@@ -145,10 +145,9 @@ def effect_at_screened(c: Candidate, screened: dict):
         key = q.split(".", 1)[1] if "." in q else q
         if key in values and isinstance(v, (int, float)) and math.isfinite(v):
             values[key] = float(v)
-    if c.name == "leakage":
-        # a leak's refit starts at least at its neutral conductance, not at the bound zero a screening step may
-        # reach (the Effect contract declares no such floor yet: the one name test left here)
-        values["conductance_kg_per_s_Pa"] = max(values["conductance_kg_per_s_Pa"], 1e-11)
+    # a screening step may end on a bound where the effect is absent: the refit starts at least at the effect's floor
+    for key, floor in type(c.effect).refit_start_floor.items():
+        values[key] = max(values[key], floor)
     # a screening step may leave a parameter just outside the effect's physical range: start inside it
     for key, bounds in getattr(type(c.effect), "ranges", {}).items():
         if key in values and bounds is not None:

@@ -34,7 +34,10 @@ __all__ = [
     "RIVAL_WINDOW", "RIVAL_ON_TOP", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS", "SET_LEADERS", "WINDOW_DELAY_STEPS", "SET_EXPLAINS_WINDOW", "SET_SHRINK", "SET_FIT_SHARE",
     "MIN_IMPROVEMENT_POINTS", "ERROR_SHRINK", "CLEARLY_SHORT", "AT_NOISE", "PERFECT_ERROR",
     "DELAY_SCAN_ERROR_RATIO", "SCAN_FACTOR", "SCAN_REFITS", "DELAY_GRID_PER_SAMPLE", "MIN_DELAY_SAMPLES",
-    "ON_TOP_REFITS", "OTHER_RESIDUAL", "FURTHER_SEARCH_RESIDUAL", "MAX_CLOSEST", "TIME_BUDGET_S", "WORK_UNITS_PER_S", "BUDGET_BACKSTOP", "BUDGET_NOMINAL_FITS", "default_budget_s", "COMMAND_MAP_SPAN", "COMMAND_MAP_BINS", "HOLDING_SPAN", "SETS_SHOWN",
+    "ON_TOP_REFITS", "OTHER_RESIDUAL", "FURTHER_SEARCH_RESIDUAL", "MAX_CLOSEST", "TIME_BUDGET_S", "WORK_UNITS_PER_S", "BUDGET_BACKSTOP", "BUDGET_NOMINAL_FITS", "default_budget_s", "COMMAND_MAP_SPAN", "COMMAND_MAP_BINS", "SETS_SHOWN",
+    "MOVING_STROKE", "NEAR_NULL_SPAN", "LARGE_OPENING_HALF_SPAN", "END_STOP_STROKE", "HIGH_PRESSURE_SUPPLY",
+    "LOW_PRESSURE_ATMOSPHERES", "FAST_CHANGE_SPAN", "FAST_CHANGE_S", "REVERSAL_S", "CONDITION_SHARE",
+    "REVERSAL_SHARE", "OFF_NULL_V", "SMALL_COMMAND_V",
     "SOLVER_FAILURES",
     "bic_penalty", "information_gain", "noise_floor_points", "validation_room", "passes_test", "keep_test_text",
     "screening_route", "is_solver_failure", "rules_table", "table_markdown",
@@ -49,6 +52,40 @@ VALIDATION_FRACTION = fit_rules.DEFAULT_VALIDATION_FRACTION
 VALIDATION_FRACTION_RANGE = (0.05, 0.5)
 #: (position-noise stds) the piston must move over at least this range in the validation part to score a model
 VALIDATION_MOTION_NOISE = 20
+
+# ---------------------------------------------------------------------------------- the operating conditions
+#: (fraction of the stroke per second) the piston moves (extends, retracts) faster than this, and holds still
+#: otherwise: well above the noise of a differentiated position, well below any commanded motion
+MOVING_STROKE = 0.01
+#: (fraction of the valve's span) the valve is near null this close to it: a leak's creep while holding and the
+#: pressures' settling after a move show there
+NEAR_NULL_SPAN = 0.02
+#: (fraction of the valve's half span) beyond this from null the valve is wide open: a long move's heating and a
+#: supply's droop show there
+LARGE_OPENING_HALF_SPAN = 0.4
+#: (fraction of the stroke) the piston is near an end stop this close to either end
+END_STOP_STROKE = 0.05
+#: (fraction of supply, absolute) a chamber above this is at high pressure
+HIGH_PRESSURE_SUPPLY = 0.8
+#: (atmospheres) a chamber below this is at low pressure
+LOW_PRESSURE_ATMOSPHERES = 1.3
+#: (fraction of the valve's span) a command change larger than this from one sample to the next is fast
+FAST_CHANGE_SPAN = 0.1
+#: (s) a fast command change marks the samples this long after it, the spool's and the chambers' response
+FAST_CHANGE_S = 0.05
+#: (s) a velocity reversal marks this long on either side of it, where the friction changes sign
+REVERSAL_S = 0.05
+#: (fraction of a window's samples) a mismatch window is described by the conditions that hold on more of it
+CONDITION_SHARE = 0.5
+#: (fraction of a window's samples) a window is described as a velocity reversal where more of it is one: a
+#: reversal marks a tenth of a second, a smaller share of most windows than a direction
+REVERSAL_SHARE = 0.2
+#: (V) the small-command speed deficit reads commands at least this far from null (2 % of the paper rigs' 5 V half
+#: span, a fixed voltage on any rig): the smallest quarter of them still opens the valve
+OFF_NULL_V = 0.1
+#: (V) the signatures read the velocity's zero crossing and the smallest commands that move the piston (a flat
+#: spot's edge) on commands this close to null, where a line fits the velocity
+SMALL_COMMAND_V = 1.0
 
 # ------------------------------------------------------------------------------------------------ locate
 #: (probability) a recording explained up to noise flags a window with at most this probability (Bonferroni
@@ -225,8 +262,6 @@ BUDGET_NOMINAL_FITS = 10.0
 COMMAND_MAP_SPAN = 0.15
 #: (bins) the map's resolution near null: a bin per command level where there are fewer
 COMMAND_MAP_BINS = 40
-#: (fraction of the valve's span) the piston holds where the command is this close to null: a leak's creep shows there
-HOLDING_SPAN = 0.02
 #: (sets) the report lists at most this many of the sets fitted together on the window, the best (the JSON has all)
 SETS_SHOWN = 8
 

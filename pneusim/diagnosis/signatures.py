@@ -33,7 +33,8 @@ import math
 import numpy as np
 
 from ..model.effects import EFFECTS
-from .locate import operating_conditions, velocity_estimate
+from .locate import moving_speed, operating_conditions, valve_null_and_span, velocity_estimate
+from .rules import OFF_NULL_V, SMALL_COMMAND_V
 
 __all__ = ["compute_signatures", "evidence_text", "hold_runs", "settling"]
 
@@ -49,8 +50,9 @@ def _corr(a, b) -> float:
 
 
 def _band(u_rel, speed, moving):
-    """The smallest commands (5th percentile of |u - null|, within 1 V of null) that move the piston."""
-    small = np.abs(u_rel) < 1.0
+    """The smallest commands (5th percentile of |u - null|, within :data:`~.rules.SMALL_COMMAND_V` of null) that
+    move the piston."""
+    small = np.abs(u_rel) < SMALL_COMMAND_V
     go = small & moving
     if go.sum() < 5:
         return float("nan")
@@ -74,7 +76,7 @@ def _lag(u, x, model_position, ok, dt: float) -> tuple[float, float]:
 def _small_command_speed_deficit(u_rel, v_meas, v_model, ok) -> float:
     """Speed measured / model for the smallest and the largest quarter of the off-null commands: a dead band
     (or a spool that cannot follow) takes more from small commands than from large ones."""
-    off = (np.abs(u_rel) > 0.02 * 5.0) & ok
+    off = (np.abs(u_rel) > OFF_NULL_V) & ok
     if not off.sum() > 40:
         return float("nan")
     a = np.abs(u_rel[off])
@@ -89,7 +91,7 @@ def _small_command_speed_deficit(u_rel, v_meas, v_model, ok) -> float:
 def _null_shift(u_rel, v_meas, v_model, ok) -> float:
     """The command at which the measured velocity crosses zero (a line through the small-command samples), minus
     the model's, V."""
-    small = (np.abs(u_rel) < 1.0) & ok
+    small = (np.abs(u_rel) < SMALL_COMMAND_V) & ok
     if not (small.sum() > 20 and np.ptp(u_rel[small]) > 0):
         return float("nan")
     a_m = np.polyfit(u_rel[small], v_meas[small], 1)
@@ -156,14 +158,13 @@ def compute_signatures(recording, rig, model_states: dict, velocity_model: np.nd
     """
     t, x, u = recording.time_s, recording.position_m, recording.valve_cmd_V
     dt = float(t[1] - t[0])
-    stroke = rig.stroke_m
-    null = float(rig.params.get("valve_null_V", 5.0))
+    null, _ = valve_null_and_span(rig)
     v_meas = velocity_estimate(t, x)
     v_model = np.asarray(velocity_model, float)
     e_v = v_meas - velocity_estimate(t, np.nan_to_num(model_states["position_m"], nan=float(np.nanmean(x))))
     ok = np.isfinite(model_states["position_m"])
     masks = operating_conditions(recording, rig, v_meas)
-    moving_thr = 0.01 * stroke
+    moving_thr = moving_speed(rig)
     out = {}
     direction = np.sign(v_meas) * (np.abs(v_meas) > moving_thr)
     out["direction_r"] = _corr(e_v[ok], direction[ok])

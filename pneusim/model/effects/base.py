@@ -15,7 +15,7 @@ is a subclass of :class:`Effect` in its own module of this package, and declares
   grid instead of by gradient) and ``fit_scale`` (the optimiser's scale and bounds of each);
 * **how diagnosis screens it** -- ``neutral`` (the values at which it is nearly absent, or ``None``),
   :meth:`Effect.screening_starts`, ``data_sheet_start``, ``scanned``,
-  :meth:`Effect.added_parameters`, ``family`` (one of :data:`LOOK_ALIKE_FAMILIES`),
+  :meth:`Effect.added_parameters`, ``refit_start_floor``, ``family`` (one of :data:`LOOK_ALIKE_FAMILIES`),
   :meth:`Effect.evidence`, :meth:`Effect.reported_options` and :meth:`Effect.derived_parameters`.
 
 A fact every effect must declare starts as :data:`REQUIRED`; :func:`missing_facts` lists those an
@@ -138,6 +138,10 @@ class Effect:
     #: the report's evidence plot of a finding of this effect, one of :data:`EVIDENCE_PLOTS`: the signature that
     #: identifies it, before and after the findings
     evidence_plot: str = "over time"
+    #: the least value a refit starts a parameter at, ``name: value`` (none by default): a screening step may end a
+    #: parameter on a bound where the effect is absent (a leak's conductance at zero), and its refit starts at least
+    #: here instead
+    refit_start_floor: Mapping[str, float] = {}
     #: False when the effect is left out of the pairs pre-fitted together on the mismatch window (it is pre-fitted
     #: there alone as every effect is): its own states, fitted freely on a window, absorb whatever else is missing
     window_pairs: bool = True

@@ -37,6 +37,8 @@ class Leakage(Effect):
     family = "slow pneumatic"
     evidence_plot = "holding"
     neutral = {"conductance_kg_per_s_Pa": SCREENING_CONDUCTANCE_KG_PER_S_PA}
+    #: a screening step may reach the bound zero, where the leak is absent: its refit starts at the neutral value
+    refit_start_floor = {"conductance_kg_per_s_Pa": SCREENING_CONDUCTANCE_KG_PER_S_PA}
     #: every leak path is different physics: the screening from the data sheet keeps all three
     data_sheet_start = None
 

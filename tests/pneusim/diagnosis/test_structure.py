@@ -7,7 +7,7 @@
 * :class:`~pneusim.diagnosis.DiagnosisStages` holds today's stages by default, and ``diagnose`` keeps its
   signature.
 * A vocabulary effect is named only where the diagnosis does something for it alone: the transport delay's
-  scans (:mod:`pneusim.diagnosis.delay`), the report's evidence plots, the leak's refit floor.
+  scans (:mod:`pneusim.diagnosis.delay`); everything else reads the effect's declared facts.
 * No comment or docstring of ``pneusim/diagnosis/`` names a stop, an issue, a commit or a case id: the story is
   in ``docs/decisions/``.
 """
@@ -28,7 +28,7 @@ PACKAGE = Path(diagnosis.__file__).resolve().parent
 DOC = PACKAGE.parents[1] / "docs" / "diagnosis.md"
 MODULES = sorted(PACKAGE.glob("*.py"))
 #: where a vocabulary effect may be named: what the diagnosis does for that effect alone
-NAMED_EFFECTS = {"delay.py": {"transport_delay"}, "refits.py": {"leakage"}, "evidence.py": set(EFFECTS)}
+NAMED_EFFECTS = {"delay.py": {"transport_delay"}}
 
 
 @pytest.mark.parametrize("path", MODULES, ids=lambda p: p.name)

@@ -85,6 +85,8 @@ def test_what_the_fit_frees_is_the_effects_own_and_has_a_scale_and_bounds(cls):
 def test_the_diagnosis_facts_are_well_formed(cls, rigs):
     assert cls.family in LOOK_ALIKE_FAMILIES
     assert cls.evidence_plot in EVIDENCE_PLOTS
+    for key, floor in cls.refit_start_floor.items():   # a start a refit can take: inside the range, a free parameter
+        assert key in cls.fit_free and in_range(floor, cls.ranges.get(key)), (key, floor)
     assert isinstance(cls.scanned, bool)
     if cls.neutral is not None:
         assert cls.neutral and set(cls.neutral) <= set(cls.parameters)
