@@ -4,7 +4,8 @@ Plots (PNG):
 
 * ``fit.png`` -- measured position (and pressures) against the fitted nominal model and the improved
   model (all findings switched on), the mismatch episodes shaded, the validation part marked;
-* ``zoom.png`` -- the same three curves over the strongest mismatch episode, where the difference can be seen;
+* ``zoom.png`` -- the same three curves over the strongest mismatch episode, each above its residual (measured minus
+  model, mm or kPa), where the difference can be seen;
 * ``residuals.png`` -- residuals before (nominal) and after (improved) over time, in units of the
   sensor noise, with the mismatch windows shaded;
 * ``evidence-N-EFFECT.png`` -- the evidence of each finding, before and after modelling it (residual
@@ -45,7 +46,7 @@ def plot_fit(result: DiagnosisResult, path) -> Path:
     fig, axes = plt.subplots(len(signals), 1, sharex=True, figsize=(11, 3.0 * len(signals)), squeeze=False)
     split = result.validation["t_start_s"]
     improved = result.findings and result.final_fit is not result.nominal_fit
-    for ax, (name, y, scale, label) in zip(axes[:, 0], signals):
+    for ax, (name, y, scale, label, *_) in zip(axes[:, 0], signals):
         ax.plot(t, y * scale, lw=0.8, color="0.2", label="measured")
         ax.plot(t, nom[name] * scale, lw=0.8, color="C0", label=f"nominal ({result.nominal['fit_percent']:.1f} %)")
         if improved:
@@ -65,11 +66,12 @@ def plot_fit(result: DiagnosisResult, path) -> Path:
 
 
 def _signals(rec) -> list:
-    """``[(name, measured, scale, label)]`` of the measured signals, in plotting units."""
-    out = [("position_m", rec.position_m, 1e3, "position (mm)")]
+    """``[(name, measured, scale, label, residual scale, residual unit)]`` of the measured signals, in plotting units:
+    a position in mm, a pressure in bar, and a pressure's residual in kPa."""
+    out = [("position_m", rec.position_m, 1e3, "position (mm)", 1e3, "mm")]
     if rec.has_pressures:
-        out += [("pressure_a_Pa", rec.pressure_a_Pa, 1e-5, "p_A (bar abs)"),
-                ("pressure_b_Pa", rec.pressure_b_Pa, 1e-5, "p_B (bar abs)")]
+        out += [("pressure_a_Pa", rec.pressure_a_Pa, 1e-5, "p_A (bar abs)", 1e-3, "kPa"),
+                ("pressure_b_Pa", rec.pressure_b_Pa, 1e-5, "p_B (bar abs)", 1e-3, "kPa")]
     return out
 
 
@@ -81,7 +83,8 @@ def strongest_episode(result: DiagnosisResult):
 
 def plot_zoom(result: DiagnosisResult, path) -> Path:
     """Measured, nominal and with-findings curves over the strongest mismatch episode (with a margin of half its
-    length, at least 0.5 s, each side): the mismatch at a scale where it shows."""
+    length, at least 0.5 s, each side), each signal above its residual (measured minus model, in the signal's unit):
+    a mismatch of a fraction of a millimetre on a stroke of hundreds shows in the residual, not in the curves."""
     plt = _plt()
     rec = result.nominal_fit.recording
     t = rec.time_s
@@ -94,21 +97,29 @@ def plot_zoom(result: DiagnosisResult, path) -> Path:
         lo, hi = max(float(t[0]), w.t_start_s - margin), min(float(t[-1]), w.t_end_s + margin)
     m = (t >= lo) & (t <= hi)
     signals = _signals(rec)
-    fig, axes = plt.subplots(len(signals), 1, sharex=True, figsize=(9, 2.6 * len(signals)), squeeze=False)
+    fig, axes = plt.subplots(2 * len(signals), 1, sharex=True, figsize=(9, 3.9 * len(signals)), squeeze=False,
+                             gridspec_kw={"height_ratios": [1.6, 1.0] * len(signals)})
     improved = result.findings and result.final_fit is not result.nominal_fit
-    for ax, (name, y, scale, label) in zip(axes[:, 0], signals):
+    with_label = f"with {' + '.join(result.effects)}"
+    for k, (name, y, scale, label, r_scale, r_unit) in enumerate(signals):
+        ax, ax_r = axes[2 * k, 0], axes[2 * k + 1, 0]
         ax.plot(t[m], y[m] * scale, lw=1.0, color="0.2", label="measured")
         ax.plot(t[m], nom[name][m] * scale, lw=1.0, color="C0", label="nominal")
+        ax_r.plot(t[m], (y[m] - nom[name][m]) * r_scale, lw=0.8, color="C0", label="nominal")
         if improved:
-            ax.plot(t[m], fin[name][m] * scale, lw=1.0, color="C2", ls="--",
-                    label=f"with {' + '.join(result.effects)}")
-        if w is not None:
-            ax.axvspan(w.t_start_s, w.t_end_s, color="C3", alpha=0.10, lw=0)
+            ax.plot(t[m], fin[name][m] * scale, lw=1.0, color="C2", ls="--", label=with_label)
+            ax_r.plot(t[m], (y[m] - fin[name][m]) * r_scale, lw=0.8, color="C2", label=with_label)
+        ax_r.axhline(0, color="0.5", lw=0.5)
+        for a in (ax, ax_r):
+            if w is not None:
+                a.axvspan(w.t_start_s, w.t_end_s, color="C3", alpha=0.10, lw=0)
         ax.set_ylabel(label)
+        ax_r.set_ylabel(f"measured - model\n({r_unit})")
     where = (f"strongest mismatch episode {w.t_start_s:.2f}-{w.t_end_s:.2f} s on {w.signal} ({w.condition})"
              if w is not None else "no mismatch episode: the whole recording")
     axes[0, 0].set_title(f"{result.recording}: {where}", fontsize=9)
     axes[0, 0].legend(loc="best", fontsize=8)
+    axes[1, 0].legend(loc="best", fontsize=8)
     axes[-1, 0].set_xlabel("time (s)")
     fig.tight_layout()
     savefig_atomic(fig, path, dpi=110)

@@ -85,6 +85,8 @@ def test_the_report_draws_every_plot_with_its_axes_labelled(two_effects, tmp_pat
         assert all(y for _, y in axes), f"{name}: an axis without a y label"
         assert axes[-1][0] or name.startswith("evidence"), f"{name}: no x label on the bottom axis"
         assert all(x for x, _ in axes[:1]) or name in ("fit.png", "zoom.png", "residuals.png")
+    zoom = [y for _, y in drawn["zoom.png"]]   # each signal above its residual, where a small mismatch shows
+    assert len(zoom) % 2 == 0 and [y.startswith("measured - model") for y in zoom] == [False, True] * (len(zoom) // 2)
     text = (tmp_path / "report" / "report.md").read_text()
     assert "without the findings | with the findings" in text and "zoom.png" in text
     assert "Physics left out**, most important first: `external_load`, `valve_deadband`" in text
