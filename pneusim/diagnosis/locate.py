@@ -12,6 +12,8 @@ from the recording alone.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy import stats
 
@@ -210,22 +212,27 @@ _SIGNAL_ORDER = ("position_m", "pressure_a_Pa", "pressure_b_Pa")
 def episodes(windows: list, duration_s: float, max_episodes: int = MAX_EPISODES) -> list[MismatchWindow]:
     """Mismatch windows merged into a few episodes a reader can follow: windows closer than
     :data:`~.rules.EPISODE_GAP` of the recording's duration ``duration_s`` join one episode while it stays within
-    :data:`~.rules.EPISODE_LENGTH` of it; an episode takes the signal, condition and score of its strongest window
-    (its other signals in ``also_in``); the ``max_episodes`` strongest, in time order."""
+    :data:`~.rules.EPISODE_LENGTH` of it (a window that ends within the episode joins it whatever its length); an
+    episode takes the signal, condition and score of its strongest window (its other signals in ``also_in``), and
+    begins where the one before it ended at the earliest, so that no two overlap; the ``max_episodes`` strongest,
+    in time order."""
     groups: list[list] = []
     gap, longest = EPISODE_GAP * duration_s, EPISODE_LENGTH * duration_s
     for w in sorted(windows, key=lambda w: w.t_start_s):
-        if (groups and w.t_start_s - max(x.t_end_s for x in groups[-1]) <= gap
-                and w.t_end_s - groups[-1][0].t_start_s <= longest):
+        end = max(x.t_end_s for x in groups[-1]) if groups else -math.inf
+        joins = w.t_end_s <= end or (w.t_start_s - end <= gap and w.t_end_s - groups[-1][0].t_start_s <= longest)
+        if groups and joins:
             groups[-1].append(w)
         else:
             groups.append([w])
-    merged = []
+    merged, previous_end = [], -math.inf
     for group in groups:
         strongest = max(group, key=lambda w: w.score)
         others = sorted({w.signal for w in group} - {strongest.signal},
                         key=lambda s: _SIGNAL_ORDER.index(s) if s in _SIGNAL_ORDER else len(_SIGNAL_ORDER))
-        merged.append(MismatchWindow(min(w.t_start_s for w in group), max(w.t_end_s for w in group),
+        end = max(w.t_end_s for w in group)
+        merged.append(MismatchWindow(max(previous_end, min(w.t_start_s for w in group)), end,
                                      strongest.signal, strongest.condition, strongest.score, tuple(others)))
+        previous_end = end
     merged.sort(key=lambda w: -w.score)
     return sorted(merged[:max(1, max_episodes)], key=lambda w: w.t_start_s)

@@ -63,7 +63,8 @@ def test_end_stops_openings_and_pressures_at_their_rules():
     x[2:4] = STROKE_M - np.array([0.99, 1.01]) * rules.END_STOP_STROKE * STROKE_M
     half_span = 5.0
     command = 5.0 + np.array([1.01, 0.99, 0.0, 0.0, -1.01, 0.0]) * rules.LARGE_OPENING_HALF_SPAN * half_span
-    high, low = rules.HIGH_PRESSURE_SUPPLY * PARAMS["supply_Pa"], rules.LOW_PRESSURE_ATMOSPHERES * PARAMS["atmosphere_Pa"]
+    high = rules.HIGH_PRESSURE_SUPPLY * PARAMS["supply_Pa"]
+    low = rules.LOW_PRESSURE_ATMOSPHERES * PARAMS["atmosphere_Pa"]
     pa = np.array([1.01 * high, 0.99 * high, 3e5, 3e5, 3e5, 3e5])
     pb = np.array([3e5, 3e5, 0.99 * low, 1.01 * low, 3e5, 3e5])
     masks = operating_conditions(_recording(command, x, (pa, pb)), RIG, velocity_m_per_s=np.zeros(n))

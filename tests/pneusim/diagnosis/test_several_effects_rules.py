@@ -400,6 +400,14 @@ def test_mismatch_windows_merge_into_a_few_readable_episodes():
     assert len(merged) == MAX_EPISODES and all(w.t_end_s - w.t_start_s <= 10.0 for w in merged)
     assert any(w.t_start_s <= 47.0 < w.t_end_s for w in merged)           # the strongest window's episode
     assert [w.t_start_s for w in merged] == sorted(w.t_start_s for w in merged)
+    # windows of two signals overlapping past the longest episode: consecutive episodes that do not overlap, and a
+    # window within an episode joins it
+    two = [MismatchWindow(float(t), t + 3.0, signal, "moving", 2.0) for t in range(0, 24, 2)
+           for signal in ("position_m", "pressure_b_Pa")] + [MismatchWindow(3.0, 3.5, "pressure_a_Pa", "moving", 1.0)]
+    merged = episodes(two, 100.0)
+    assert all(a.t_end_s <= b.t_start_s for a, b in zip(merged, merged[1:]))
+    assert merged[0].t_start_s == 0.0 and merged[-1].t_end_s == 25.0 and "pressure_a_Pa" in merged[0].also_in
+    assert all(w.t_end_s > w.t_start_s for w in merged)
 
 
 def test_no_finding_says_nothing_is_missing_only_where_the_search_ran_to_its_end():
