@@ -117,7 +117,7 @@ def plot_zoom(result: DiagnosisResult, path) -> Path:
         ax_r.set_ylabel(f"measured - model\n({r_unit})")
     where = (f"strongest mismatch episode {w.t_start_s:.2f}-{w.t_end_s:.2f} s on {w.signal} ({w.condition})"
              if w is not None else "no mismatch episode: the whole recording")
-    axes[0, 0].set_title(f"{result.recording}: {where}", fontsize=9)
+    fig.suptitle(f"{result.recording}: {where}", fontsize=9)
     axes[0, 0].legend(loc="best", fontsize=8)
     axes[1, 0].legend(loc="best", fontsize=8)
     axes[-1, 0].set_xlabel("time (s)")
