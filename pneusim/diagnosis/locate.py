@@ -219,12 +219,12 @@ def episodes(windows: list, duration_s: float, max_episodes: int = MAX_EPISODES)
     groups: list[list] = []
     gap, longest = EPISODE_GAP * duration_s, EPISODE_LENGTH * duration_s
     for w in sorted(windows, key=lambda w: w.t_start_s):
-        end = max(x.t_end_s for x in groups[-1]) if groups else -math.inf
-        joins = w.t_end_s <= end or (w.t_start_s - end <= gap and w.t_end_s - groups[-1][0].t_start_s <= longest)
-        if groups and joins:
-            groups[-1].append(w)
-        else:
-            groups.append([w])
+        if groups:
+            end = max(x.t_end_s for x in groups[-1])
+            if w.t_end_s <= end or (w.t_start_s - end <= gap and w.t_end_s - groups[-1][0].t_start_s <= longest):
+                groups[-1].append(w)
+                continue
+        groups.append([w])
     merged, previous_end = [], -math.inf
     for group in groups:
         strongest = max(group, key=lambda w: w.score)
