@@ -166,7 +166,7 @@ def compute_signatures(recording, rig, model_states: dict, velocity_model: np.nd
     masks = operating_conditions(recording, rig, v_meas)
     moving_thr = moving_speed(rig)
     out = {}
-    direction = np.sign(v_meas) * (np.abs(v_meas) > moving_thr)
+    direction = masks["extending"].astype(float) - masks["retracting"]     # +1, -1, 0 while holding still
     out["direction_r"] = _corr(e_v[ok], direction[ok])
     ext, ret = masks["extending"] & ok, masks["retracting"] & ok
     out["extend_mean_mm_s"] = float(np.mean(e_v[ext]) * 1e3) if ext.any() else float("nan")
@@ -175,7 +175,7 @@ def compute_signatures(recording, rig, model_states: dict, velocity_model: np.nd
         dp = np.abs(recording.pressure_a_Pa - recording.pressure_b_Pa)
     else:
         dp = np.abs(model_states["pressure_a_Pa"] - model_states["pressure_b_Pa"])
-    moving = np.abs(v_meas) > moving_thr
+    moving = masks["extending"] | masks["retracting"]
     out["pressure_r"] = _corr((e_v ** 2)[ok & moving], dp[ok & moving])
     out["position_r"] = _corr(e_v[ok], x[ok])
     out["lag_s"], out["lag_r"] = _lag(u, x, model_states["position_m"], ok, dt)
