@@ -109,7 +109,7 @@ class Budget:
 
 
 #: the stages a budget gates, and what each costs: a whole fit (True) or a few trust-region steps (False)
-_GATED = {"refit": True, "fit": True, "prefit": False, "screen": False, "polished_costs": False}
+_GATED = {"refit": True, "fit": True, "rescue": True, "prefit": False, "screen": False, "polished_costs": False}
 
 
 def gated_stages(stages, budget: Budget, fit_cost_s: float):

@@ -28,7 +28,8 @@
    that only helped while something else was missing dropped;
 9. **other** (:mod:`.other`) -- where the model with every finding (the nominal model where there is none) still
    leaves a residual well above noise, an ``other`` finding: where, under which conditions, what it looks like,
-   and which vocabulary effects came closest and why they failed.
+   and which vocabulary effects came closest and why they failed.  Before it is said, the findings' fit gets the
+   fit's rescue routes, which the candidates' fits skip (:meth:`Diagnosis._rescued`).
 
 Step 7 is first the one-effect-first search: a second effect among the candidates the first round kept or set
 aside.  Where its findings leave the model above noise (:func:`.other.above_noise`: a residual above noise on the
@@ -71,13 +72,13 @@ from .budget import Budget, gated_stages
 from .findings import add_findings, drop_one, joint_finding, more_findings, rank_by_contribution, refreshed
 from .from_data_sheet import confirm_from_data_sheet, mismatch_window, one_start_each, screen_from_data_sheet
 from .locate import episodes, locate_mismatch, named_states
-from .other import above_noise, other_finding
-from .refits import estimation_cost, fit_from_data_sheet, fit_nominal, noise_levels, refit
+from .other import above_noise, other_finding, unexplained
+from .refits import estimation_cost, fit_from_data_sheet, fit_nominal, noise_levels, refit, with_rescue_routes
 from .result import DiagnosisResult
 from .rules import (AT_NOISE_ON_WINDOW, MAX_FINDINGS, MAX_FINDINGS_SEVERAL, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, MODEL_SHORT,
                     SCREEN_SAMPLES, SET_EXPLAINS_WINDOW, SET_FIT_SHARE, SET_SHRINK, TIME_BUDGET_S, VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE,
                     VALIDATION_MOTION_NOISE, WINDOW_SAMPLES,
-                    default_budget_s, keep_test_text, noise_floor_points, passes_test, screening_route,
+                    default_budget_s, is_solver_failure, keep_test_text, noise_floor_points, passes_test, screening_route,
                     validation_room)
 from .run import DiagnosisRun, NominalBaseline
 from .signatures import compute_signatures
@@ -113,6 +114,8 @@ class DiagnosisStages:
     refit : ``(recording, rig, effects, warm, start_values=None) -> FitResult`` (:func:`.refits.refit`)
     fit : ``(recording, rig, effects, validation_fraction, start_values) -> FitResult``, a whole fit from the
         data sheet (:func:`.refits.fit_from_data_sheet`)
+    rescue : ``(recording, rig, fit, validation_fraction) -> FitResult``, ``fit``'s model fitted again from its
+        values with the fit's rescue routes (:func:`.refits.with_rescue_routes`)
     keep_test : ``(cost0, cost1, n, k, fit0, fit1, floor) -> (kept, threshold, reason)`` (:func:`.rules.passes_test`)
     """
 
@@ -133,6 +136,7 @@ class DiagnosisStages:
     prefit: Callable = prefit_recording
     refit: Callable = refit
     fit: Callable = fit_from_data_sheet
+    rescue: Callable = with_rescue_routes
     keep_test: Callable = passes_test
 
 
@@ -277,6 +281,9 @@ class Diagnosis:
         ended = _search_ended(budget, findings, kept, run.max_findings)
         if findings and not run.several_effects:
             ended = None      # the one-effect-first search says ``other`` only where nothing was kept
+        if ended is not None and findings:
+            findings, final = self._rescued(run, findings, final, name)
+            ended = _search_ended(budget, findings, kept, run.max_findings)
         other = run.stages.other(run, final, duration_s, ended) if ended is not None else None  # 9. other
         findings += [other] if other is not None else []
         basis = run.baseline
@@ -303,6 +310,29 @@ class Diagnosis:
         self._say(name, f"findings {', '.join(result.effects) or 'none'}; final fit {final.fit_percent:.2f} % "
                         f"({result.seconds:.0f} s)")
         return result
+
+    def _rescued(self, run: DiagnosisRun, findings: list, final, name: str):
+        """9, first: before ``other`` is said, the findings' fit ``final`` gets the fit's rescue routes where it
+        skipped them (a fit from the data sheet or warm from another) and leaves physics unexplained
+        (:func:`.other.unexplained`): their model fitted again from ``final``'s values (``run.stages.rescue``),
+        kept where it ends lower on the estimation part.  Returns ``(findings, final)``.
+
+        Why: the candidates' fits skip the routes (:data:`~.rules.DATA_SHEET_FIT_RESCUE`), which find the
+        optimum of a right model on a recording too chaotic for the shooting problem's landscape; a right set of
+        findings stuck above noise there would otherwise be reported with ``other``."""
+        if getattr(final, "solver", {}).get("rescue", True) or not unexplained(final, run.noise, run.baseline.floor)[0]:
+            return findings, final
+        self._say(name, f"{', '.join(f.effect for f in findings)}: final fit {final.fit_percent:.2f} % leaves "
+                        "physics unexplained; fitted again with the rescue routes")
+        try:
+            fit = run.stages.rescue(run.recording, run.rig, final, run.baseline.validation_fraction)
+        except Exception as exc:  # noqa: BLE001 - a failed fit leaves the findings' fit as it was
+            if not is_solver_failure(exc):
+                raise
+            return findings, final
+        if not estimation_cost(fit, run.noise)[0] < estimation_cost(final, run.noise)[0]:
+            return findings, final
+        return refreshed(findings, fit), fit
 
     def _go_on(self, run: DiagnosisRun, findings: list, final, name: str):
         """7, continued: the one-effect-first search's ``findings`` (their fit ``final``) leave the model above

@@ -13,10 +13,10 @@ from ..fit import fit_recording, noise_std_estimate
 from ..fit.rules import POSITION_NOISE_FLOOR, PRESSURE_NOISE_FLOOR_PA
 from ..model import make_effect
 from .candidates import Candidate, neutral_effect
-from .rules import DATA_SHEET_FIT_STARTS, DEFECT_WEIGHT, is_solver_failure
+from .rules import DATA_SHEET_FIT_RESCUE, DATA_SHEET_FIT_STARTS, DEFECT_WEIGHT, is_solver_failure
 
-__all__ = ["noise_levels", "estimation_cost", "fit_nominal", "refit", "fit_from_data_sheet", "retry_from_neutral",
-           "judge_refit", "effect_parameters", "effect_at_screened", "effect_at_prefit"]
+__all__ = ["noise_levels", "estimation_cost", "fit_nominal", "refit", "fit_from_data_sheet", "with_rescue_routes",
+           "retry_from_neutral", "judge_refit", "effect_parameters", "effect_at_screened", "effect_at_prefit"]
 
 
 def noise_levels(recording, rig) -> dict:
@@ -68,9 +68,19 @@ def refit(recording, rig, effects, warm, start_values=None):
 
 def fit_from_data_sheet(recording, rig, effects, validation_fraction: float, start_values=None):
     """The whole fit with ``effects`` switched on from the data sheet (and from ``start_values`` for the
-    parameters named there), one start (:data:`~.rules.DATA_SHEET_FIT_STARTS`)."""
+    parameters named there), one start (:data:`~.rules.DATA_SHEET_FIT_STARTS`), without the fit's rescue routes
+    (:data:`~.rules.DATA_SHEET_FIT_RESCUE`)."""
     return fit_recording(recording, rig, effects, validation_fraction=validation_fraction,
-                         starts=DATA_SHEET_FIT_STARTS, quiet=True, start_values=start_values)
+                         starts=DATA_SHEET_FIT_STARTS, quiet=True, start_values=start_values,
+                         rescue=DATA_SHEET_FIT_RESCUE)
+
+
+def with_rescue_routes(recording, rig, fit, validation_fraction: float):
+    """``fit``'s model (its effects) fitted whole again from ``fit``'s values, one start, with the fit's rescue
+    routes (:mod:`pneusim.fit.rescue_routes`), which the fits from the data sheet skip
+    (:data:`~.rules.DATA_SHEET_FIT_RESCUE`)."""
+    return fit_recording(recording, rig, fit.effects_, validation_fraction=validation_fraction, starts=1, quiet=True,
+                         start_values=fit.estimates, rescue=True)
 
 
 def retry_from_neutral(run, candidate: Candidate, fit1, cost1: float):

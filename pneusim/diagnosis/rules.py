@@ -31,7 +31,7 @@ __all__ = [
     "SCREEN_SAMPLES", "SCREEN_EVALUATIONS", "SCANNED_EVALUATIONS", "DEFECT_WEIGHT", "DELAY_LAG_FACTORS",
     "DELAY_LAG_CORRELATION", "RELATIVE_SCORE", "MIN_EXPLAINED",
     "WINDOW_SAMPLES", "PREFIT_EVALUATIONS", "AT_NOISE_ON_WINDOW", "WINDOW_SHOWS_MISMATCH", "MAX_FITS", "EXPLAINED",
-    "RIVAL_WINDOW", "RIVAL_ON_TOP", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS", "SET_LEADERS", "WINDOW_DELAY_STEPS", "SET_EXPLAINS_WINDOW", "SET_SHRINK", "SET_FIT_SHARE",
+    "RIVAL_WINDOW", "RIVAL_ON_TOP", "DEFER_WINDOW", "PREFIT_START", "DATA_SHEET_FIT_STARTS", "DATA_SHEET_FIT_RESCUE", "SET_LEADERS", "WINDOW_DELAY_STEPS", "SET_EXPLAINS_WINDOW", "SET_SHRINK", "SET_FIT_SHARE",
     "MIN_IMPROVEMENT_POINTS", "ERROR_SHRINK", "CLEARLY_SHORT", "AT_NOISE", "PERFECT_ERROR",
     "DELAY_SCAN_ERROR_RATIO", "SCAN_FACTOR", "SCAN_REFITS", "DELAY_GRID_PER_SAMPLE", "MIN_DELAY_SAMPLES",
     "ON_TOP_REFITS", "OTHER_RESIDUAL", "FURTHER_SEARCH_RESIDUAL", "MAX_CLOSEST", "TIME_BUDGET_S", "WORK_UNITS_PER_S", "BUDGET_BACKSTOP", "BUDGET_NOMINAL_FITS", "default_budget_s", "COMMAND_MAP_SPAN", "COMMAND_MAP_BINS", "SETS_SHOWN",
@@ -174,6 +174,11 @@ DEFER_WINDOW = 5.0
 PREFIT_START = 0.5
 #: (starts) of a whole fit from the data sheet: the pre-fit on the window chose its start
 DATA_SHEET_FIT_STARTS = 1
+#: (yes/no) a whole fit from the data sheet runs the fit's rescue routes where it ends above noise: no. They find the
+#: optimum of a model that is right on a chaotic recording; a candidate on a recording that lacks more physics than
+#: it ends above noise by any route, and the routes took over a third of a three-effect recording's diagnosis.  The
+#: findings' fit gets them once, before ``other`` is said (:func:`~.refits.with_rescue_routes`)
+DATA_SHEET_FIT_RESCUE = False
 #: (effects) where no effect alone explains the window, the effects whose pre-fits alone lead there are pre-fitted
 #: together, in pairs (each variant of each), as the several effects a recording may lack at once
 SET_LEADERS = 4

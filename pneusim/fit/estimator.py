@@ -132,8 +132,8 @@ class PhysicalFit:
                  *, validation_fraction: float | None = None, segment_samples: int = SEGMENT_SAMPLES,
                  prefit_samples: int = PREFIT_SAMPLES, starts: int = PREFIT_STARTS, rtol: float = 1e-6,
                  threads: int = 2, max_iter: int = IPOPT_MAX_ITER, quiet: bool = False, verbose: bool = False,
-                 stages: FitStages = FitStages()):
-        self.rig, self.effects, self.free = rig, effects, free
+                 rescue: bool = True, stages: FitStages = FitStages()):
+        self.rig, self.effects, self.free, self.rescue = rig, effects, free, rescue
         self.validation_fraction, self.segment_samples = validation_fraction, segment_samples
         self.prefit_samples, self.starts, self.rtol, self.threads = prefit_samples, starts, rtol, threads
         self.max_iter, self.quiet, self.verbose, self.stages = max_iter, quiet, verbose, stages
@@ -175,7 +175,7 @@ class PhysicalFit:
             if pre is None:
                 continue
             rms_pre, rms = pre[1], self._whole_fit(run, k, *pre)
-            if k == 0 and rms > ABOVE_NOISE_WARNING:
+            if self.rescue and k == 0 and rms > ABOVE_NOISE_WARNING:
                 # the prediction-error route before the other starts: where the first start fails on a recording
                 # too chaotic for the shooting problem's landscape, the others fail there too (0103)
                 if normalised_rms(run.pb, self._prediction_error(run, _best(run))) <= ABOVE_NOISE_WARNING:
@@ -309,9 +309,13 @@ class PhysicalFit:
         it nor every pre-fit more than :data:`.rules.MODEL_SHORT` times above it (a recording too chaotic for
         chained starts), then the prediction-error route where it still ends above noise, however far (a
         recording too chaotic for the shooting problem's landscape; the filter itself tells that apart from
-        a model that lacks physics).  Each kept when lower (``docs/decisions/0017``, ``0018``)."""
+        a model that lacks physics).  Each kept when lower (``docs/decisions/0017``, ``0018``).  None without
+        ``rescue``."""
         pb, lo, hi = run.pb, run.lo, run.hi
         rms_best = normalised_rms(pb, res)
+        if not self.rescue:
+            run.window[0].close()
+            return res
         if (ABOVE_NOISE_WARNING < rms_best <= MODEL_SHORT
                 and min(a["rms_normalised"] for a in run.attempts) <= MODEL_SHORT):
             res = self._tracked(run, res, rms_best)

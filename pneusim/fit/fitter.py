@@ -23,7 +23,7 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
                   segment_samples: int = SEGMENT_SAMPLES, prefit_samples: int = PREFIT_SAMPLES,
                   starts: int = PREFIT_STARTS, rtol: float = 1e-6, threads: int = 2, max_iter: int = IPOPT_MAX_ITER,
                   verbose: bool = False, quiet: bool = False, warm_start: FitResult | None = None,
-                  start_values: dict | None = None) -> FitResult:
+                  start_values: dict | None = None, rescue: bool = True) -> FitResult:
     """Fit the rig's uncertain parameters (and those of ``effects``) to ``recording``.
 
     Parameters
@@ -81,6 +81,13 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
         ``{parameter name: value in SI units}`` to start from instead of the rig's (or the warm
         fit's) values, e.g. friction levels that belong with a new effect's starting value.
 
+    rescue : bool
+        The rescue routes where the best fit still ends above noise (tracked starts, then the prediction-error
+        route; :mod:`.rescue_routes`), on by default.  They find the optimum of a model that is right on a
+        recording too chaotic for the shooting problem's landscape; where the model is known to lack physics
+        (a diagnosis's candidate fitted from the data sheet), above noise is the answer and they are skipped:
+        ``solver["rescue"]`` says which.
+
     Raises
     ------
     FitError
@@ -89,4 +96,5 @@ def fit_recording(recording: Recording, rig: Rig | str | None = None, effects: S
     """
     return PhysicalFit(rig, effects, free, validation_fraction=validation_fraction, segment_samples=segment_samples,
                        prefit_samples=prefit_samples, starts=starts, rtol=rtol, threads=threads, max_iter=max_iter,
-                       verbose=verbose, quiet=quiet).fit(recording, warm_start=warm_start, start_values=start_values)
+                       verbose=verbose, quiet=quiet, rescue=rescue).fit(recording, warm_start=warm_start,
+                                                                       start_values=start_values)

@@ -99,7 +99,8 @@ class FitRun:
                 "ipopt_seconds": res.seconds,
                 "max_defect": res.max_defect, "defect_sum_squares": self.defect_sum_squares,
                 "prefit_attempts": self.attempts, "tracked_route": self.tracked,
-                "prediction_error_route": self.predicted, "formulation": res.formulation, "warm_start": self.warm,
+                "prediction_error_route": self.predicted, "rescue": bool(self.options.rescue and not self.warm),
+                "formulation": res.formulation, "warm_start": self.warm,
                 "segments": int(self.pb.n_segments), "segment_samples": self.setup.seg}
 
     def close(self) -> None:

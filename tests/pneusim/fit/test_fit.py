@@ -311,3 +311,33 @@ def test_second_route_only_when_ipopt_from_the_direct_route_stays_above_noise():
     calls.clear()
     full_fit(None, np.zeros(1), None, None, prefit_rms=0.99, **solvers)
     assert [c[0] for c in calls] == ["trust region", "continuation"]
+
+
+@pytest.mark.slow
+def test_without_rescue_routes_a_model_that_lacks_physics_stays_above_noise_and_no_route_runs():
+    """A leak the model leaves out keeps the fit above noise: by default the rescue routes run after it (and a route
+    is kept only where it ends lower), with ``rescue=False`` none runs and the result says so."""
+    from pneusim.fit import FitStages, PhysicalFit
+    from pneusim.fit.rescue_routes import prediction_error_route, tracked_route
+    from pneusim.fit.rules import ABOVE_NOISE_WARNING
+
+    leak = make_effect("leakage", conductance_kg_per_s_Pa=2e-9)
+    rig, _, rec = _recording("paper1-mre", "open", True, seed=2, noise_scale=1.0, effects=[leak], duration=3.0)
+    called = []
+
+    def counted(name, route):
+        def stand_in(*args, **kwargs):
+            called.append(name)
+            return route(*args, **kwargs)
+        return stand_in
+
+    stages = FitStages(tracked=counted("tracked", tracked_route),
+                       prediction_error=counted("prediction error", prediction_error_route))
+    rescued = PhysicalFit(rig, quiet=True, stages=stages).fit(rec)
+    assert rescued.normalised_residual > ABOVE_NOISE_WARNING and "prediction error" in called
+    assert rescued.solver["rescue"] and rescued.solver["prediction_error_route"] is not None
+    called.clear()
+    plain = PhysicalFit(rig, quiet=True, stages=stages, rescue=False).fit(rec)
+    assert called == [] and plain.normalised_residual > ABOVE_NOISE_WARNING
+    assert plain.solver["rescue"] is False
+    assert plain.solver["tracked_route"] is None and plain.solver["prediction_error_route"] is None
