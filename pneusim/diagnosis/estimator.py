@@ -69,7 +69,8 @@ from .around_nominal import confirm_around_nominal, screen_around_nominal
 from .candidates import candidate_list, polished_costs, screen
 from .delay import scan_found_delay, scan_kept_delay, screened_delays
 from .budget import Budget, gated_stages
-from .findings import add_findings, drop_one, joint_finding, more_findings, rank_by_contribution, refreshed
+from .findings import (add_findings, drop_one, joint_finding, more_findings, rank_by_contribution, refreshed,
+                       rescued)
 from .from_data_sheet import confirm_from_data_sheet, mismatch_window, one_start_each, screen_from_data_sheet
 from .locate import episodes, locate_mismatch, named_states
 from .other import above_noise, other_finding, unexplained
@@ -78,7 +79,7 @@ from .result import DiagnosisResult
 from .rules import (AT_NOISE_ON_WINDOW, MAX_FINDINGS, MAX_FINDINGS_SEVERAL, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, MODEL_SHORT,
                     SCREEN_SAMPLES, SET_EXPLAINS_WINDOW, SET_FIT_SHARE, SET_SHRINK, TIME_BUDGET_S, VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE,
                     VALIDATION_MOTION_NOISE, WINDOW_SAMPLES,
-                    default_budget_s, is_solver_failure, keep_test_text, noise_floor_points, passes_test, screening_route,
+                    default_budget_s, keep_test_text, noise_floor_points, passes_test, screening_route,
                     validation_room)
 from .run import DiagnosisRun, NominalBaseline
 from .signatures import compute_signatures
@@ -282,7 +283,7 @@ class Diagnosis:
         if findings and not run.several_effects:
             ended = None      # the one-effect-first search says ``other`` only where nothing was kept
         if ended is not None and findings:
-            findings, final = self._rescued(run, findings, final, name)
+            findings, final = self._rescued(run, findings, final)
             ended = _search_ended(budget, findings, kept, run.max_findings)
         other = run.stages.other(run, final, duration_s, ended) if ended is not None else None  # 9. other
         findings += [other] if other is not None else []
@@ -311,28 +312,15 @@ class Diagnosis:
                         f"({result.seconds:.0f} s)")
         return result
 
-    def _rescued(self, run: DiagnosisRun, findings: list, final, name: str):
-        """9, first: before ``other`` is said, the findings' fit ``final`` gets the fit's rescue routes where it
-        skipped them (a fit from the data sheet or warm from another) and leaves physics unexplained
-        (:func:`.other.unexplained`): their model fitted again from ``final``'s values (``run.stages.rescue``),
-        kept where it ends lower on the estimation part.  Returns ``(findings, final)``.
+    @staticmethod
+    def _rescued(run: DiagnosisRun, findings: list, final):
+        """9, first: before ``other`` is said, the findings' fit ``final`` with the fit's rescue routes where it
+        skipped them and leaves physics unexplained (:func:`.findings.rescued`); returns ``(findings, final)``.
 
-        Why: the candidates' fits skip the routes (:data:`~.rules.DATA_SHEET_FIT_RESCUE`), which find the
-        optimum of a right model on a recording too chaotic for the shooting problem's landscape; a right set of
-        findings stuck above noise there would otherwise be reported with ``other``."""
-        if getattr(final, "solver", {}).get("rescue", True) or not unexplained(final, run.noise, run.baseline.floor)[0]:
-            return findings, final
-        self._say(name, f"{', '.join(f.effect for f in findings)}: final fit {final.fit_percent:.2f} % leaves "
-                        "physics unexplained; fitted again with the rescue routes")
-        try:
-            fit = run.stages.rescue(run.recording, run.rig, final, run.baseline.validation_fraction)
-        except Exception as exc:  # noqa: BLE001 - a failed fit leaves the findings' fit as it was
-            if not is_solver_failure(exc):
-                raise
-            return findings, final
-        if not estimation_cost(fit, run.noise)[0] < estimation_cost(final, run.noise)[0]:
-            return findings, final
-        return refreshed(findings, fit), fit
+        Why: a right set of findings stuck above noise on a recording too chaotic for the shooting problem would
+        otherwise be reported with ``other``."""
+        fit = rescued(run, final, lambda f: unexplained(f, run.noise, run.baseline.floor)[0])
+        return (findings, final) if fit is final else (refreshed(findings, fit), fit)
 
     def _go_on(self, run: DiagnosisRun, findings: list, final, name: str):
         """7, continued: the one-effect-first search's ``findings`` (their fit ``final``) leave the model above

@@ -428,3 +428,60 @@ def test_no_finding_says_nothing_is_missing_only_where_the_search_ran_to_its_end
     for text in (stopped.summary(), "\n".join(_verdict_lines(stopped))):
         assert "nothing is missing" not in text.lower()
         assert "not known whether something is missing" in text.lower() and "-308.50 %" in text
+
+
+def test_the_first_finding_and_before_other_the_findings_fit_get_the_rescue_routes_kept_only_where_lower(
+        monkeypatch):
+    """The candidates' fits from the data sheet skip the fit's rescue routes; the first finding's fit that skipped
+    them and ends above noise, and before ``other`` is said the findings' fit that leaves physics unexplained, is
+    fitted again with them (``run.stages.rescue``), and the new fit replaces it only where it ends lower on the
+    estimation part.  A fit that ran the routes, or one at noise, is not fitted again; a failed rescue leaves the
+    fit as it was."""
+    from types import SimpleNamespace
+
+    from pneusim.diagnosis import Diagnosis
+    from pneusim.errors import FitError
+
+    def stand_in(times_noise, rescued, fit_percent=98.7):
+        fit = _other_stand_in(times_noise, 0.0, fit_percent)
+        fit.solver["rescue"] = rescued
+        return fit
+
+    calls = []
+
+    def rescue_to(result):
+        def rescue(recording, rig, fit, validation_fraction):
+            calls.append(fit)
+            if isinstance(result, Exception):
+                raise result
+            return result
+        return rescue
+
+    findings = [SimpleNamespace(effect="leakage")]
+    basis = NominalBaseline({"position_m": 1e-4}, 1.0, 1000, 90.0, 0.2, 0.3, None)
+    stuck, at_noise = stand_in(6.94, rescued=False), stand_in(1.2, rescued=True, fit_percent=99.8)
+    run = stand_in_run(basis, rescue=rescue_to(at_noise))
+    assert Diagnosis._rescued(run, findings, stuck)[1] is at_noise and calls == [stuck]
+    worse = stand_in(7.5, rescued=True)
+    run = stand_in_run(basis, rescue=rescue_to(worse))
+    assert Diagnosis._rescued(run, findings, stuck)[1] is stuck
+    run = stand_in_run(basis, rescue=rescue_to(FitError("the model could not be integrated")))
+    assert Diagnosis._rescued(run, findings, stuck)[1] is stuck
+    calls.clear()
+    run = stand_in_run(basis, rescue=rescue_to(at_noise))
+    for not_again in (stand_in(6.94, rescued=True), stand_in(1.2, rescued=False, fit_percent=99.8)):
+        assert Diagnosis._rescued(run, findings, not_again)[1] is not_again
+    assert calls == []
+    # the first finding: its fit, above noise, is fitted again with the routes before the search on top
+    from pneusim.diagnosis import findings as findings_module
+    from pneusim.diagnosis.result import CandidateTrial
+
+    calls.clear()
+    run = stand_in_run(basis, rescue=rescue_to(at_noise),
+                       trials={"leakage": CandidateTrial("leakage", 50.0, "", refitted=True, kept=True)},
+                       refits={"leakage": (stuck, "candidate")})
+    searched_from = []
+    monkeypatch.setattr(findings_module, "_search_on_top", lambda run, found, final, pool: searched_from.append(final))
+    monkeypatch.setattr(findings_module, "_finding", lambda eff, fit, fit0, trial: eff)
+    findings_module.add_findings(run, ["leakage"])
+    assert calls == [stuck] and searched_from == [at_noise] and run.refits["leakage"][0] is at_noise
