@@ -22,14 +22,15 @@
    by more than noise explains);
 6. **delay scan** (:mod:`.delay`) -- a kept transport delay that leads, or comes close, estimated by refits
    (a delay has no gradient);
-7. **findings** (:mod:`.findings`) -- the kept candidate with the best validation fit first, then more effects
-   on top of it, one at a time, each screened and tested with the findings before it present;
+7. **findings** (:mod:`.findings`) -- the kept candidate with the best validation fit first (its fit with the
+   rescue routes where one from the data sheet skipped them and ends above noise: :func:`.refits.rescued`),
+   then more effects on top of it, one at a time, each screened and tested with the findings before it present;
 8. **drop-one** (:func:`.findings.drop_one`) -- each finding tested with all the others present, a look-alike
    that only helped while something else was missing dropped;
 9. **other** (:mod:`.other`) -- where the model with every finding (the nominal model where there is none) still
    leaves a residual well above noise, an ``other`` finding: where, under which conditions, what it looks like,
    and which vocabulary effects came closest and why they failed.  Before it is said, the findings' fit gets the
-   fit's rescue routes, which the candidates' fits skip (:meth:`Diagnosis._rescued`).
+   fit's rescue routes where it skipped them (:meth:`Diagnosis._before_other`).
 
 Step 7 is first the one-effect-first search: a second effect among the candidates the first round kept or set
 aside.  Where its findings leave the model above noise (:func:`.other.above_noise`: a residual above noise on the
@@ -69,12 +70,12 @@ from .around_nominal import confirm_around_nominal, screen_around_nominal
 from .candidates import candidate_list, polished_costs, screen
 from .delay import scan_found_delay, scan_kept_delay, screened_delays
 from .budget import Budget, gated_stages
-from .findings import (add_findings, drop_one, joint_finding, more_findings, rank_by_contribution, refreshed,
-                       rescued)
+from .findings import add_findings, drop_one, joint_finding, more_findings, rank_by_contribution, refreshed
 from .from_data_sheet import confirm_from_data_sheet, mismatch_window, one_start_each, screen_from_data_sheet
 from .locate import episodes, locate_mismatch, named_states
 from .other import above_noise, other_finding, unexplained
-from .refits import estimation_cost, fit_from_data_sheet, fit_nominal, noise_levels, refit, with_rescue_routes
+from .refits import (estimation_cost, fit_from_data_sheet, fit_nominal, noise_levels, refit, rescued,
+                     with_rescue_routes)
 from .result import DiagnosisResult
 from .rules import (AT_NOISE_ON_WINDOW, MAX_FINDINGS, MAX_FINDINGS_SEVERAL, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, MODEL_SHORT,
                     SCREEN_SAMPLES, SET_EXPLAINS_WINDOW, SET_FIT_SHARE, SET_SHRINK, TIME_BUDGET_S, VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE,
@@ -279,12 +280,7 @@ class Diagnosis:
                 findings, final = run.stages.drop_one(run, findings, final)                   # 8. drop-one
         t_drop_one = time.perf_counter()
         duration_s = float(recording.time_s[-1] - recording.time_s[0])
-        ended = _search_ended(budget, findings, kept, run.max_findings)
-        if findings and not run.several_effects:
-            ended = None      # the one-effect-first search says ``other`` only where nothing was kept
-        if ended is not None and findings:
-            findings, final = self._rescued(run, findings, final)
-            ended = _search_ended(budget, findings, kept, run.max_findings)
+        findings, final, ended = self._before_other(run, budget, findings, kept, final)
         other = run.stages.other(run, final, duration_s, ended) if ended is not None else None  # 9. other
         findings += [other] if other is not None else []
         basis = run.baseline
@@ -313,14 +309,21 @@ class Diagnosis:
         return result
 
     @staticmethod
-    def _rescued(run: DiagnosisRun, findings: list, final):
-        """9, first: before ``other`` is said, the findings' fit ``final`` with the fit's rescue routes where it
-        skipped them and leaves physics unexplained (:func:`.findings.rescued`); returns ``(findings, final)``.
+    def _before_other(run: DiagnosisRun, budget: Budget, findings: list, kept: list, final):
+        """9, first: why the search ended (:func:`_search_ended`; None where ``other`` is not said: the budget
+        stopped it, or the one-effect-first search kept something) and, where ``other`` may be said, the
+        findings' fit ``final`` with the fit's rescue routes where it skipped them and leaves physics unexplained
+        (:func:`.refits.rescued`).  Returns ``(findings, final, ended)``.
 
         Why: a right set of findings stuck above noise on a recording too chaotic for the shooting problem would
         otherwise be reported with ``other``."""
+        ended = _search_ended(budget, findings, kept, run.max_findings)
+        if ended is None or not findings or not run.several_effects:
+            return findings, final, (None if findings and not run.several_effects else ended)
         fit = rescued(run, final, lambda f: unexplained(f, run.noise, run.baseline.floor)[0])
-        return (findings, final) if fit is final else (refreshed(findings, fit), fit)
+        if fit is not final:
+            findings, final = refreshed(findings, fit), fit
+        return findings, final, _search_ended(budget, findings, kept, run.max_findings)
 
     def _go_on(self, run: DiagnosisRun, findings: list, final, name: str):
         """7, continued: the one-effect-first search's ``findings`` (their fit ``final``) leave the model above

@@ -13,13 +13,13 @@ from ..model.effects import EFFECTS
 from .candidates import family_of
 from .from_data_sheet import data_sheet_start
 from .other import above_noise, unexplained
-from .refits import effect_at_screened, effect_parameters, estimation_cost
+from .refits import effect_at_screened, effect_parameters, estimation_cost, rescued
 from .result import CandidateTrial, Finding
 from .rules import MIN_EXPLAINED, MODEL_SHORT, ON_TOP_REFITS, RIVAL_ON_TOP, bic_penalty, is_solver_failure
 from .window_sets import subset_from_prefit
 
 __all__ = ["add_findings", "more_findings", "drop_one", "joint_finding", "rank_by_contribution", "refreshed",
-           "ON_TOP_REFITS", "rescued"]
+           "ON_TOP_REFITS"]
 
 
 def add_findings(run, kept: list) -> tuple[list, object]:
@@ -48,29 +48,6 @@ def add_findings(run, kept: list) -> tuple[list, object]:
     if run.several_effects:
         pool.update(_wide_pool(run, findings, pool))
     return _search_on_top(run, findings, final, pool)
-
-
-def rescued(run, fit, leaves_physics):
-    """``fit`` fitted again with the fit's rescue routes (``run.stages.rescue``,
-    :func:`.refits.with_rescue_routes`) where it skipped them (fitted from the data sheet, or warm from another fit)
-    and ``leaves_physics(fit)``; the new fit where it ends lower on the estimation part, else ``fit``.
-
-    Why: the candidates' fits skip the routes (:data:`~.rules.DATA_SHEET_FIT_RESCUE`), which find the optimum of
-    a right model on a recording too chaotic for the shooting problem's landscape, and cost as much as the fit
-    itself; only the fit the search goes on from (the first finding's) and the one ``other`` is said on get them.
-    A right first finding left above noise without them sends the search on top looking for physics that is not
-    missing."""
-    if fit.solver.get("rescue", True) or not leaves_physics(fit):
-        return fit
-    run.say(f"fit with {', '.join(e.name for e in fit.effects_)} again, with the rescue routes "
-            f"(validation fit {fit.fit_percent:.2f} %)")
-    try:
-        again = run.stages.rescue(run.recording, run.rig, fit, run.baseline.validation_fraction)
-    except Exception as exc:  # noqa: BLE001 - a failed fit leaves the fit as it was
-        if not is_solver_failure(exc):
-            raise
-        return fit
-    return again if estimation_cost(again, run.noise)[0] < estimation_cost(fit, run.noise)[0] else fit
 
 
 def more_findings(run, findings: list, final) -> tuple[list, object]:

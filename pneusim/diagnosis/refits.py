@@ -16,7 +16,7 @@ from .candidates import Candidate, neutral_effect
 from .rules import DATA_SHEET_FIT_RESCUE, DATA_SHEET_FIT_STARTS, DEFECT_WEIGHT, is_solver_failure
 
 __all__ = ["noise_levels", "estimation_cost", "fit_nominal", "refit", "fit_from_data_sheet", "with_rescue_routes",
-           "retry_from_neutral", "judge_refit", "effect_parameters", "effect_at_screened", "effect_at_prefit"]
+           "rescued", "retry_from_neutral", "judge_refit", "effect_parameters", "effect_at_screened", "effect_at_prefit"]
 
 
 def noise_levels(recording, rig) -> dict:
@@ -81,6 +81,29 @@ def with_rescue_routes(recording, rig, fit, validation_fraction: float):
     (:data:`~.rules.DATA_SHEET_FIT_RESCUE`)."""
     return fit_recording(recording, rig, fit.effects_, validation_fraction=validation_fraction, starts=1, quiet=True,
                          start_values=fit.estimates, rescue=True)
+
+
+def rescued(run, fit, leaves_physics):
+    """``fit`` fitted again with the fit's rescue routes (``run.stages.rescue``,
+    :func:`.refits.with_rescue_routes`) where it skipped them (fitted from the data sheet, or warm from another fit)
+    and ``leaves_physics(fit)``; the new fit where it ends lower on the estimation part, else ``fit``.
+
+    Why: the candidates' fits skip the routes (:data:`~.rules.DATA_SHEET_FIT_RESCUE`), which find the optimum of
+    a right model on a recording too chaotic for the shooting problem's landscape, and cost as much as the fit
+    itself; only the fit the search goes on from (the first finding's) and the one ``other`` is said on get them.
+    A right first finding left above noise without them sends the search on top looking for physics that is not
+    missing."""
+    if fit.solver.get("rescue", True) or not leaves_physics(fit):
+        return fit
+    run.say(f"fit with {', '.join(e.name for e in fit.effects_)} again, with the rescue routes "
+            f"(validation fit {fit.fit_percent:.2f} %)")
+    try:
+        again = run.stages.rescue(run.recording, run.rig, fit, run.baseline.validation_fraction)
+    except Exception as exc:  # noqa: BLE001 - a failed fit leaves the fit as it was
+        if not is_solver_failure(exc):
+            raise
+        return fit
+    return again if estimation_cost(again, run.noise)[0] < estimation_cost(fit, run.noise)[0] else fit
 
 
 def retry_from_neutral(run, candidate: Candidate, fit1, cost1: float):

@@ -457,21 +457,32 @@ def test_the_first_finding_and_before_other_the_findings_fit_get_the_rescue_rout
             return result
         return rescue
 
-    findings = [SimpleNamespace(effect="leakage")]
+    from pneusim.diagnosis.budget import Budget
+    from pneusim.diagnosis.refits import rescued
+
     basis = NominalBaseline({"position_m": 1e-4}, 1.0, 1000, 90.0, 0.2, 0.3, None)
     stuck, at_noise = stand_in(6.94, rescued=False), stand_in(1.2, rescued=True, fit_percent=99.8)
+    always = lambda fit: True  # noqa: E731
     run = stand_in_run(basis, rescue=rescue_to(at_noise))
-    assert Diagnosis._rescued(run, findings, stuck)[1] is at_noise and calls == [stuck]
-    worse = stand_in(7.5, rescued=True)
-    run = stand_in_run(basis, rescue=rescue_to(worse))
-    assert Diagnosis._rescued(run, findings, stuck)[1] is stuck
-    run = stand_in_run(basis, rescue=rescue_to(FitError("the model could not be integrated")))
-    assert Diagnosis._rescued(run, findings, stuck)[1] is stuck
+    assert rescued(run, stuck, always) is at_noise and calls == [stuck]
+    assert rescued(stand_in_run(basis, rescue=rescue_to(stand_in(7.5, rescued=True))), stuck, always) is stuck
+    failing = stand_in_run(basis, rescue=rescue_to(FitError("the model could not be integrated")))
+    assert rescued(failing, stuck, always) is stuck
     calls.clear()
-    run = stand_in_run(basis, rescue=rescue_to(at_noise))
-    for not_again in (stand_in(6.94, rescued=True), stand_in(1.2, rescued=False, fit_percent=99.8)):
-        assert Diagnosis._rescued(run, findings, not_again)[1] is not_again
-    assert calls == []
+    ran_them = stand_in(6.94, rescued=True)
+    assert rescued(run, ran_them, always) is ran_them
+    assert rescued(run, stuck, lambda fit: False) is stuck and calls == []
+    # before ``other``: where the several-effects search ended with nothing more passing the test, the findings'
+    # fit leaving physics unexplained; not where the one-effect-first search kept something
+    findings = [SimpleNamespace(effect="leakage")]
+    run.several_effects = True
+    assert Diagnosis._before_other(run, Budget(), findings, ["leakage"], stuck)[1:] == (
+        at_noise, "no vocabulary effect passed the test on top of the findings")
+    assert calls == [stuck]
+    run.several_effects = False
+    assert Diagnosis._before_other(run, Budget(), findings, ["leakage"], stuck)[1:] == (stuck, None)
+    assert Diagnosis._before_other(run, Budget(), findings, ["leakage"], at_noise)[1] is at_noise
+    assert calls == [stuck]
     # the first finding: its fit, above noise, is fitted again with the routes before the search on top
     from pneusim.diagnosis import findings as findings_module
     from pneusim.diagnosis.result import CandidateTrial
