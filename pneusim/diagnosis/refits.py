@@ -76,11 +76,13 @@ def fit_from_data_sheet(recording, rig, effects, validation_fraction: float, sta
 
 
 def with_rescue_routes(recording, rig, fit, validation_fraction: float):
-    """``fit``'s model (its effects) fitted whole again from ``fit``'s values, one start, with the fit's rescue
-    routes (:mod:`pneusim.fit.rescue_routes`), which the fits from the data sheet skip
-    (:data:`~.rules.DATA_SHEET_FIT_RESCUE`)."""
-    return fit_recording(recording, rig, fit.effects_, validation_fraction=validation_fraction, starts=1, quiet=True,
-                         start_values=fit.estimates, rescue=True)
+    """``fit`` fitted again as it was started (its effects at their start values, every free parameter from its
+    start: :attr:`~pneusim.fit.ParameterEstimate.start`), with the fit's rescue routes
+    (:mod:`pneusim.fit.rescue_routes`), which the fits from the data sheet skip (:data:`~.rules.DATA_SHEET_FIT_RESCUE`).
+    From a fit from the data sheet this is that fit with the routes: the same steps up to them."""
+    return fit_recording(recording, rig, fit.effects_, validation_fraction=validation_fraction,
+                         starts=DATA_SHEET_FIT_STARTS, quiet=True,
+                         start_values={name: p.start for name, p in fit.parameters.items()}, rescue=True)
 
 
 def rescued(run, fit, leaves_physics):
