@@ -116,8 +116,8 @@ class DiagnosisStages:
     refit : ``(recording, rig, effects, warm, start_values=None) -> FitResult`` (:func:`.refits.refit`)
     fit : ``(recording, rig, effects, validation_fraction, start_values) -> FitResult``, a whole fit from the
         data sheet (:func:`.refits.fit_from_data_sheet`)
-    rescue : ``(recording, rig, fit, validation_fraction) -> FitResult``, ``fit``'s model fitted again from its
-        values with the fit's rescue routes (:func:`.refits.with_rescue_routes`)
+    rescue : ``(recording, rig, fit, validation_fraction) -> FitResult``, ``fit`` fitted again as it was started,
+        with the fit's rescue routes (:func:`.refits.with_rescue_routes`)
     keep_test : ``(cost0, cost1, n, k, fit0, fit1, floor) -> (kept, threshold, reason)`` (:func:`.rules.passes_test`)
     """
 

@@ -92,7 +92,8 @@ def rescued(run, fit, leaves_physics):
 
     Why: the candidates' fits skip the routes (:data:`~.rules.DATA_SHEET_FIT_RESCUE`), which find the optimum of
     a right model on a recording too chaotic for the shooting problem's landscape, and cost as much as the fit
-    itself; only the fit the search goes on from (the first finding's) and the one ``other`` is said on get them.
+    itself; only the fit the search goes on from (the first finding's, or a pair's found jointly) and the one
+    ``other`` is said on get them.
     A right first finding left above noise without them sends the search on top looking for physics that is not
     missing."""
     if fit.solver.get("rescue", True) or not leaves_physics(fit):

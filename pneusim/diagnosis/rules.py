@@ -177,8 +177,8 @@ DATA_SHEET_FIT_STARTS = 1
 #: (yes/no) a whole fit from the data sheet runs the fit's rescue routes where it ends above noise: no. They find the
 #: optimum of a model that is right on a chaotic recording; a candidate on a recording that lacks more physics than
 #: it ends above noise by any route, and the routes took over a third of a three-effect recording's diagnosis.  The
-#: first finding's fit gets them where it ends above noise, and the findings' fit before ``other`` is said
-#: (:func:`~.refits.rescued`)
+#: fit the search goes on from (the first finding's, or a pair's found jointly) gets them where it ends above noise,
+#: and the findings' fit before ``other`` is said (:func:`~.refits.rescued`)
 DATA_SHEET_FIT_RESCUE = False
 #: (effects) where no effect alone explains the window, the effects whose pre-fits alone lead there are pre-fitted
 #: together, in pairs (each variant of each), as the several effects a recording may lack at once
