@@ -317,9 +317,11 @@ class Diagnosis:
 
         Why: a right set of findings stuck above noise on a recording too chaotic for the shooting problem would
         otherwise be reported with ``other``."""
+        if findings and not run.several_effects:
+            return findings, final, None   # the one-effect-first search says ``other`` only where nothing was kept
         ended = _search_ended(budget, findings, kept, run.max_findings)
-        if ended is None or not findings or not run.several_effects:
-            return findings, final, (None if findings and not run.several_effects else ended)
+        if ended is None or not findings:
+            return findings, final, ended
         fit = rescued(run, final, lambda f: unexplained(f, run.noise, run.baseline.floor)[0])
         if fit is not final:
             findings, final = refreshed(findings, fit), fit

@@ -311,16 +311,14 @@ class PhysicalFit:
         recording too chaotic for the shooting problem's landscape; the filter itself tells that apart from
         a model that lacks physics).  Each kept when lower (``docs/decisions/0017``, ``0018``).  None without
         ``rescue``."""
-        pb, lo, hi = run.pb, run.lo, run.hi
+        pb = run.pb
         rms_best = normalised_rms(pb, res)
-        if not self.rescue:
-            run.window[0].close()
-            return res
-        if (ABOVE_NOISE_WARNING < rms_best <= MODEL_SHORT
-                and min(a["rms_normalised"] for a in run.attempts) <= MODEL_SHORT):
-            res = self._tracked(run, res, rms_best)
-        if normalised_rms(pb, res) > ABOVE_NOISE_WARNING and run.predicted is None:
-            res = self._prediction_error(run, res)
+        if self.rescue:
+            if (ABOVE_NOISE_WARNING < rms_best <= MODEL_SHORT
+                    and min(a["rms_normalised"] for a in run.attempts) <= MODEL_SHORT):
+                res = self._tracked(run, res, rms_best)
+            if normalised_rms(pb, res) > ABOVE_NOISE_WARNING and run.predicted is None:
+                res = self._prediction_error(run, res)
         run.window[0].close()
         return res
 
