@@ -228,7 +228,7 @@ def _markdown(result: DiagnosisResult, evidence_files) -> str:
         lines += ["| from (s) | to (s) | signal | also in | condition | residual / noise (rms) |",
                   "|---|---|---|---|---|---|"]
         lines += [f"| {w.t_start_s:.2f} | {w.t_end_s:.2f} | {w.signal} | {', '.join(w.also_in) or '-'} | "
-                  f"{w.condition} | {math.sqrt(max(w.score, 0.0)):.1f} |" for w in result.episodes]
+                  f"{w.condition} | {w.residual_rms_noise_units:.1f} |" for w in result.episodes]
     else:
         lines.append("none: the nominal model explains the recording up to noise.")
     lines += ["", "## Candidates screened and tested", "", f"Test: {result.test}.", ""]

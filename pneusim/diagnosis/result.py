@@ -24,9 +24,10 @@ def _num(value, digits: int = 6):
 class MismatchWindow:
     """A stretch of the recording where the nominal model's residual exceeds the sensor noise.
 
-    ``score`` is the window's mean squared residual divided by the noise variance (1 for pure noise).  An
-    episode (windows merged, :func:`.locate.episodes`) names its strongest window's signal and condition, and the
-    other signals its windows were in (``also_in``).
+    ``score`` is the window's mean squared residual divided by the noise variance (1 for pure noise); the JSON
+    gives its square root, ``residual_rms_noise_units`` (the report's "residual / noise (rms)"), so that a reader
+    of the file can rank the windows as the report does.  An episode (windows merged, :func:`.locate.episodes`)
+    names its strongest window's signal and condition, and the other signals its windows were in (``also_in``).
     """
 
     t_start_s: float
@@ -36,9 +37,14 @@ class MismatchWindow:
     score: float = 1.0
     also_in: tuple = ()
 
+    @property
+    def residual_rms_noise_units(self) -> float:
+        """The window's root-mean-square residual in units of the sensor noise (1 for pure noise)."""
+        return math.sqrt(max(self.score, 0.0))
+
     def to_dict(self) -> dict:
         out = {"t_start_s": _num(self.t_start_s), "t_end_s": _num(self.t_end_s), "signal": self.signal,
-               "condition": self.condition}
+               "condition": self.condition, "residual_rms_noise_units": _num(self.residual_rms_noise_units, 3)}
         if self.also_in:
             out["also_in"] = list(self.also_in)
         return out

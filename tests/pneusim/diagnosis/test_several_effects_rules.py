@@ -62,6 +62,8 @@ def test_other_is_said_on_the_residuals_alone_not_on_the_defects_a_penalty_fit_l
     assert [(w.t_start_s, w.t_end_s, w.signal, w.also_in) for w in finding.mismatch] == [
         (1.0, 2.2, "position_m", ("pressure_a_Pa",)), (30.0, 30.8, "position_m", ())]
     assert finding.to_dict()["mismatch"][0]["also_in"] == ["pressure_a_Pa"]
+    # the JSON ranks the episodes as the report does: the strongest window's rms residual in noise units
+    assert [w["residual_rms_noise_units"] for w in finding.to_dict()["mismatch"]] == [3.0, 2.24]
     # a residual above noise on the estimation part, but a validation error within 2 F of the floor: not other
     assert other.other_finding(run, _other_stand_in(6.94, 0.0012, fit_percent=99.7), 40.0) is None
     assert other.other_finding(_other_run([]), short, 40.0) is None
