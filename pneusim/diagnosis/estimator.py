@@ -299,9 +299,10 @@ class Diagnosis:
                     "refits_s": time.perf_counter() - started - t_nominal - t_screen,
                     "first_finding_s": t_first - t_started - t_screen, "on_top_s": t_on_top - t_first,
                     "drop_one_s": t_drop_one - t_on_top, "window_sets_s": run.window_sets_s,   # within first_finding_s
+                    "rescue_s": sum(r["seconds"] for r in run.rescues),   # within the stages that asked for them
                     "cpu_s": time.process_time() - cpu_started,    # this process's: both fit threads
                     "budget_s": budget.used()},                    # the work counted, in the budget's seconds
-            window_sets=[w.to_dict() for w in run.window_sets],
+            window_sets=[w.to_dict() for w in run.window_sets], rescues=list(run.rescues),
             nominal_fit=nominal, final_fit=final, signatures=signatures,
             fits={k: v[0] for k, v in run.refits.items()})
         self._say(name, f"findings {', '.join(result.effects) or 'none'}; final fit {final.fit_percent:.2f} % "
@@ -322,7 +323,7 @@ class Diagnosis:
         ended = _search_ended(budget, findings, kept, run.max_findings)
         if ended is None or not findings:
             return findings, final, ended
-        fit = rescued(run, final, lambda f: unexplained(f, run.noise, run.baseline.floor)[0])
+        fit = rescued(run, final, lambda f: unexplained(f, run.noise, run.baseline.floor)[0], "before other")
         if fit is not final:
             findings, final = refreshed(findings, fit), fit
         return findings, final, _search_ended(budget, findings, kept, run.max_findings)
@@ -409,7 +410,7 @@ class Diagnosis:
         findings = [joint_finding(c.name, fit, run.baseline.fit0, run.trials[c.name]) for c in best.candidates]
         findings, final = run.stages.drop_one(run, findings, fit)                             # 8. drop-one
         final = scan_found_delay(run, final)                                                  # 6. a delay
-        final = rescued(run, final, lambda f: above_noise(f, run.noise, run.baseline.floor))
+        final = rescued(run, final, lambda f: above_noise(f, run.noise, run.baseline.floor), "pair found jointly")
         findings = refreshed(findings, final)
         if len(findings) < run.max_findings and above_noise(final, run.noise, run.baseline.floor):
             n_before = len(findings)

@@ -40,7 +40,8 @@ def add_findings(run, kept: list) -> tuple[list, object]:
     the first, while a true second effect that fitted badly alone, or was never fitted, would not be tried
     (``docs/decisions/0032``)."""
     first = kept[0]
-    final = rescued(run, run.refits[first][0], lambda fit: above_noise(fit, run.noise, run.baseline.floor))
+    final = rescued(run, run.refits[first][0], lambda fit: above_noise(fit, run.noise, run.baseline.floor),
+                    "first finding")
     run.refits[first] = (final, run.refits[first][1])
     findings = [_finding(first, final, run.baseline.fit0, run.trials[first])]
     pool = {eff: run.refits[eff][1] for eff in kept[1:]}

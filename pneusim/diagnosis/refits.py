@@ -6,6 +6,7 @@ test applied to a refit (:func:`judge_refit`; the test itself is :func:`.rules.p
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
@@ -85,10 +86,12 @@ def with_rescue_routes(recording, rig, fit, validation_fraction: float):
                          start_values={name: p.start for name, p in fit.parameters.items()}, rescue=True)
 
 
-def rescued(run, fit, leaves_physics):
+def rescued(run, fit, leaves_physics, where: str):
     """``fit`` fitted again with the fit's rescue routes (``run.stages.rescue``,
     :func:`.refits.with_rescue_routes`) where it skipped them (fitted from the data sheet, or warm from another fit)
-    and ``leaves_physics(fit)``; the new fit where it ends lower on the estimation part, else ``fit``.
+    and ``leaves_physics(fit)``; the new fit where it ends lower on the estimation part, else ``fit``.  Each rescue
+    that runs is recorded in ``run.rescues`` (``where``: the step that asked for it; the JSON's ``rescues``), also
+    one that failed or that the time budget stopped.
 
     Why: the candidates' fits skip the routes (:data:`~.rules.DATA_SHEET_FIT_RESCUE`), which find the optimum of
     a right model on a recording too chaotic for the shooting problem's landscape, and cost as much as the fit
@@ -100,13 +103,26 @@ def rescued(run, fit, leaves_physics):
         return fit
     run.say(f"fit with {', '.join(e.name for e in fit.effects_)} again, with the rescue routes "
             f"(validation fit {fit.fit_percent:.2f} %)")
+    cost, n = estimation_cost(fit, run.noise)
+    record = {"where": where, "effects": [e.name for e in fit.effects_], "fit_percent_before": fit.fit_percent,
+              "estimation_rms_before": math.sqrt(cost / max(n, 1))}
+    run.rescues.append(record)
+    started = time.perf_counter()
     try:
         again = run.stages.rescue(run.recording, run.rig, fit, run.baseline.validation_fraction)
     except Exception as exc:  # noqa: BLE001 - a failed fit leaves the fit as it was
-        if not is_solver_failure(exc):
+        failed = is_solver_failure(exc)    # else the time budget's stop ("stopped: ...", "not started: ...")
+        record.update(kept=False, outcome=f"failed: {exc}" if failed else str(exc),
+                      seconds=time.perf_counter() - started)
+        if not failed:
             raise
         return fit
-    return again if estimation_cost(again, run.noise)[0] < estimation_cost(fit, run.noise)[0] else fit
+    cost_again, n_again = estimation_cost(again, run.noise)
+    kept = cost_again < cost
+    record.update(fit_percent_after=again.fit_percent, estimation_rms_after=math.sqrt(cost_again / max(n_again, 1)),
+                  kept=kept, outcome="kept: ends lower on the estimation part" if kept else
+                  "not kept: ends no lower on the estimation part", seconds=time.perf_counter() - started)
+    return again if kept else fit
 
 
 def retry_from_neutral(run, candidate: Candidate, fit1, cost1: float):

@@ -248,6 +248,7 @@ def _markdown(result: DiagnosisResult, evidence_files) -> str:
                   "|---|---|---|---|"]
         lines += [f"| {w['variants']} | {_value(w.get('window_objective_normalised'))} | {_value(w.get('criterion'))} "
                   f"| {w.get('fitted_whole', '-')} |" for w in result.window_sets[:SETS_SHOWN]]
+    lines += _rescue_lines(result.rescues)
     lines += ["", "## Nominal parameters, fitted without and with the findings", "",
               "Without the missing physics, the nominal parameters bend to make up for it; with the findings "
               "modelled they move back toward physical values.", "",
@@ -259,6 +260,23 @@ def _markdown(result: DiagnosisResult, evidence_files) -> str:
         lines.append(f"| `{k}` | {_value(v)} | {_value(after)} | {_value(change)} |")
     lines += ["", f"Diagnosis time {result.seconds:.0f} s. The JSON result is `diagnosis.json`.", ""]
     return "\n".join(lines)
+
+
+def _rescue_lines(rescues: list) -> list[str]:
+    """The fits fitted again with the fit's rescue routes, as report lines (none where none was)."""
+    if not rescues:
+        return []
+    lines = ["", "## Fitted again with the rescue routes", "",
+             "The candidates' fits from the data sheet skip the fit's rescue routes; the fit the search goes on from, "
+             "and the one `other` is said on, are fitted again with them where they end above noise, and the new "
+             "fit is kept where it ends lower on the estimation part (residual rms in noise units).", "",
+             "| where | effects | validation fit before (%) | after (%) | estimation rms before | after | kept | "
+             "s | outcome |", "|---|---|---|---|---|---|---|---|---|"]
+    lines += [f"| {r['where']} | {', '.join(r['effects'])} | {_value(r.get('fit_percent_before'))} | "
+              f"{_value(r.get('fit_percent_after'))} | {_value(r.get('estimation_rms_before'))} | "
+              f"{_value(r.get('estimation_rms_after'))} | {'yes' if r.get('kept') else 'no'} | "
+              f"{r.get('seconds', 0.0):.0f} | {r.get('outcome', '')} |" for r in rescues]
+    return lines
 
 
 def _other_lines(f) -> list:

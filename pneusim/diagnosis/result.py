@@ -167,13 +167,20 @@ class DiagnosisResult:
         ``nominal_fit_s``, ``screening_s``, ``refits_s``: wall time of each stage, the refits split into
         ``first_finding_s`` (confirming the first round and the delay scan), ``on_top_s`` (the search on top of
         the findings) and ``drop_one_s``, and ``window_sets_s`` (within ``first_finding_s``: the pre-fits of the
-        sets of effects on the mismatch window, :mod:`.window_sets`); ``cpu_s``: the diagnosis's processor time
+        sets of effects on the mismatch window, :mod:`.window_sets`), ``rescue_s`` (within the stage that asked
+        for each: the fits fitted again with the rescue routes, ``rescues``); ``cpu_s``: the diagnosis's processor time
         (this process, both fit threads); ``budget_s``: the time budget it used (model work at the reference rate,
         :mod:`.budget`).
     window_sets : list of dict
         Where no effect alone explained the screening's window: the sets of effects pre-fitted together there
         (:mod:`.window_sets`), best first, each ``{"effects", "variants", "window_objective_normalised",
         "criterion"}``.
+    rescues : list of dict
+        The fits fitted again with the fit's rescue routes (:func:`.refits.rescued`), in the order they ran, each
+        ``{"where", "effects", "fit_percent_before", "estimation_rms_before", "fit_percent_after",
+        "estimation_rms_after", "kept", "outcome", "seconds"}``: the validation fit % and the estimation part's rms
+        residual in noise units (continuity defects included) before and after (no ``_after`` where the fit failed
+        or the time budget stopped it), whether the new fit was kept (it ends lower) and the wall seconds.
     nominal_fit, final_fit : FitResult
         The fits themselves (for plots; not part of the JSON).
     """
@@ -194,6 +201,7 @@ class DiagnosisResult:
     final_parameters: dict = field(default_factory=dict)
     timing: dict = field(default_factory=dict)
     window_sets: list = field(default_factory=list)
+    rescues: list = field(default_factory=list)
     nominal_fit: object = None
     final_fit: object = None
     signatures: dict = field(default_factory=dict)
@@ -233,6 +241,8 @@ class DiagnosisResult:
             "search": self.search,
             "candidates": [c.to_dict() for c in self.candidates],
             **({"window_sets": list(self.window_sets)} if self.window_sets else {}),
+            **({"rescues": [{k: _num(v, 4) if isinstance(v, float) else v for k, v in r.items()}
+                            for r in self.rescues]} if self.rescues else {}),
             "test": self.test,
             "timing": {"total_s": _num(self.seconds, 4), **{k: _num(v, 4) for k, v in self.timing.items()}},
         }

@@ -91,6 +91,8 @@ class DiagnosisRun:
     joint : WindowSet or None
         The set of ``window_sets`` fitted whole together (None where none was): drop-one fits its subsets as it was
         fitted (:func:`.window_sets.subset_from_prefit`).
+    rescues : list of dict
+        Every fit fitted again with the fit's rescue routes (:func:`.refits.rescued`), in the order they ran.
     """
 
     recording: object
@@ -114,6 +116,7 @@ class DiagnosisRun:
     window_sets_s: float = 0.0
     contributions: dict = field(default_factory=dict)
     joint: object = None
+    rescues: list = field(default_factory=list)
 
     @property
     def noise(self) -> dict:

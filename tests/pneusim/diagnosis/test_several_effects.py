@@ -91,6 +91,10 @@ def test_the_report_draws_every_plot_with_its_axes_labelled(two_effects, tmp_pat
     assert "without the findings | with the findings" in text and "zoom.png" in text
     assert "Physics left out**, most important first: `external_load`, `valve_deadband`" in text
     assert index.read_text().count("<img") == 5
+    # the fits fitted again with the rescue routes, if any ran, in the report as in the JSON
+    rescues = two_effects.to_dict().get("rescues", [])
+    assert ("## Fitted again with the rescue routes" in text) == bool(rescues)
+    assert all(f"| {r['where']} | {', '.join(r['effects'])} |" in text for r in rescues)
 
 
 @pytest.mark.minutes

@@ -336,8 +336,12 @@ def test_a_fit_that_runs_to_the_end_of_the_budget_is_stopped_and_its_result_not_
         return refit
 
     evaluations = []
-    budget = Budget(10.5 * 1000 / WORK_UNITS_PER_S)
-    gated = gated_stages(DiagnosisStages(refit=long_refit(1000)), budget, fit_cost_s=0.0)
+    # each evaluation charges a million units: the budget (10.5 evaluations, a third of a second at the reference
+    # rate) is then far above what the loop costs in processor time, so its backstop (4 times the budget) cannot
+    # end it first, even in a process whose other threads are busy
+    units = 1_000_000
+    budget = Budget(10.5 * units / WORK_UNITS_PER_S)
+    gated = gated_stages(DiagnosisStages(refit=long_refit(units)), budget, fit_cost_s=0.0)
     with pytest.raises(TimeBudgetExhausted, match="ran to the end of the 0 s time budget and was stopped$"):
         gated.refit()
     assert len(evaluations) == 11 and evaluations[0] == budget.started   # the 11th began at 10 of 10.5 units
@@ -466,14 +470,23 @@ def test_the_first_finding_and_before_other_the_findings_fit_get_the_rescue_rout
     stuck, at_noise = stand_in(6.94, rescued=False), stand_in(1.2, rescued=True, fit_percent=99.8)
     always = lambda fit: True  # noqa: E731
     run = stand_in_run(basis, rescue=rescue_to(at_noise))
-    assert rescued(run, stuck, always) is at_noise and calls == [stuck]
-    assert rescued(stand_in_run(basis, rescue=rescue_to(stand_in(7.5, rescued=True))), stuck, always) is stuck
+    assert rescued(run, stuck, always, "first finding") is at_noise and calls == [stuck]
+    higher = stand_in_run(basis, rescue=rescue_to(stand_in(7.5, rescued=True)))
+    assert rescued(higher, stuck, always, "first finding") is stuck
     failing = stand_in_run(basis, rescue=rescue_to(FitError("the model could not be integrated")))
-    assert rescued(failing, stuck, always) is stuck
+    assert rescued(failing, stuck, always, "before other") is stuck
+    # each rescue is recorded for the JSON and the report: where, before and after, kept or why not
+    (kept,), (not_kept,), (failed,) = run.rescues, higher.rescues, failing.rescues
+    assert (kept["where"], kept["kept"], kept["fit_percent_before"], kept["fit_percent_after"]) == (
+        "first finding", True, 98.7, 99.8)
+    assert kept["estimation_rms_after"] < kept["estimation_rms_before"] and kept["outcome"].startswith("kept")
+    assert not not_kept["kept"] and not_kept["estimation_rms_after"] > not_kept["estimation_rms_before"]
+    assert not failed["kept"] and "fit_percent_after" not in failed and failed["outcome"].startswith("failed")
     calls.clear()
     ran_them = stand_in(6.94, rescued=True)
-    assert rescued(run, ran_them, always) is ran_them
-    assert rescued(run, stuck, lambda fit: False) is stuck and calls == []
+    assert rescued(run, ran_them, always, "first finding") is ran_them
+    assert rescued(run, stuck, lambda fit: False, "first finding") is stuck and calls == []
+    assert len(run.rescues) == 1
     # before ``other``: where the several-effects search ended with nothing more passing the test, the findings'
     # fit leaving physics unexplained; not where the one-effect-first search kept something
     findings = [SimpleNamespace(effect="leakage")]
