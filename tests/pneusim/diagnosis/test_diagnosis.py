@@ -46,7 +46,10 @@ def _contract_keys(d):
     assert set(d["validation"]) == {"t_start_s", "t_end_s"}
     assert set(d["nominal"]) == {"fit_percent", "parameters"}
     for w in d["mismatch"]:
-        assert set(w) == {"t_start_s", "t_end_s", "signal", "condition"}
+        # the contract's keys, and the window's rms residual in noise units (what the report ranks windows by):
+        # a flagged window's mean square exceeds the chi-square quantile of pure noise, so it is above 1
+        assert set(w) == {"t_start_s", "t_end_s", "signal", "condition", "residual_rms_noise_units"}
+        assert w["residual_rms_noise_units"] > 1.0
         assert w["signal"] in ("position_m", "pressure_a_Pa", "pressure_b_Pa")
         assert w["t_start_s"] <= w["t_end_s"]
     for f in d["findings"]:
