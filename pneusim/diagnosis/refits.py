@@ -103,9 +103,13 @@ def rescued(run, fit, leaves_physics, where: str):
         return fit
     run.say(f"fit with {', '.join(e.name for e in fit.effects_)} again, with the rescue routes "
             f"(validation fit {fit.fit_percent:.2f} %)")
-    cost, n = estimation_cost(fit, run.noise)
+    def cost_and_rms(f):     # the keep test's estimation cost (defects included), and its rms in noise units
+        cost, n = estimation_cost(f, run.noise)
+        return cost, math.sqrt(cost / max(n, 1))
+
+    cost, rms = cost_and_rms(fit)
     record = {"where": where, "effects": [e.name for e in fit.effects_], "fit_percent_before": fit.fit_percent,
-              "estimation_rms_before": math.sqrt(cost / max(n, 1))}
+              "estimation_rms_before": rms}
     run.rescues.append(record)
     started = time.perf_counter()
     try:
@@ -117,10 +121,10 @@ def rescued(run, fit, leaves_physics, where: str):
         if not failed:
             raise
         return fit
-    cost_again, n_again = estimation_cost(again, run.noise)
+    cost_again, rms_again = cost_and_rms(again)
     kept = cost_again < cost
-    record.update(fit_percent_after=again.fit_percent, estimation_rms_after=math.sqrt(cost_again / max(n_again, 1)),
-                  kept=kept, outcome="kept: ends lower on the estimation part" if kept else
+    record.update(fit_percent_after=again.fit_percent, estimation_rms_after=rms_again, kept=kept,
+                  outcome="kept: ends lower on the estimation part" if kept else
                   "not kept: ends no lower on the estimation part", seconds=time.perf_counter() - started)
     return again if kept else fit
 
