@@ -5,12 +5,12 @@ a script regenerates, never from a sentence typed by hand.  The header line name
 
 * the **commit** (``git rev-parse --short HEAD``, with ``+ uncommitted changes`` when the package
   sources differ from it),
-* the **machine** (CPU model, logical cores, the BLAS kernels the process runs (pinned by ``import pneusim``,
-  :mod:`pneusim.arithmetic`, or chosen by ``OPENBLAS_CORETYPE``), the 1-minute load average when the table is
-  written),
+* the **machine** (CPU model, logical cores, the BLAS kernels and NumPy's SIMD loops the process runs (pinned
+  by ``import pneusim``, :mod:`pneusim.arithmetic`, or chosen by ``OPENBLAS_CORETYPE`` and
+  ``NPY_DISABLE_CPU_FEATURES``), the 1-minute load average when the table is written),
 * the **date** (UTC) and
-* the **command** that produced it (the pytest arguments, and every ``PNEUSIM_*`` or ``OPENBLAS_*``
-  variable set in the environment, but the core type ``import pneusim`` set itself).
+* the **command** that produced it (the pytest arguments, and every ``PNEUSIM_*``, ``OPENBLAS_*`` or
+  ``NPY_DISABLE_CPU_FEATURES`` variable set in the environment, but those ``import pneusim`` set itself).
 
 ``PNEUSIM_RESULTS_DIR`` writes somewhere else (a scratch folder for a quick look); by default the
 file goes to ``docs/results/`` of this repository, where ``git diff`` shows what moved.
@@ -26,7 +26,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from pneusim.arithmetic import blas_kernels, pinned_here
+from pneusim.arithmetic import blas_kernels, numpy_dispatch, numpy_pinned_here, pinned_here
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS_DIR = ROOT / "docs" / "results"
@@ -52,7 +52,8 @@ def commit() -> str:
 
 
 def machine() -> str:
-    """CPU model, logical cores, the BLAS kernels this process runs, and the 1-minute load average."""
+    """CPU model, logical cores, the BLAS kernels and NumPy loops this process runs, and the 1-minute load
+    average."""
     model = platform.processor() or platform.machine()
     try:
         with open("/proc/cpuinfo") as f:
@@ -63,6 +64,8 @@ def machine() -> str:
     kernels = sorted(set(blas_kernels()))
     if kernels:
         parts.append(f"BLAS kernels {', '.join(kernels)}" + (" (pinned by pneusim)" if pinned_here() else ""))
+    loops = numpy_dispatch()
+    parts.append(f"NumPy loops {', '.join(loops) or 'baseline'}" + (" (pinned by pneusim)" if numpy_pinned_here() else ""))
     try:
         parts.append(f"load {os.getloadavg()[0]:.1f}")
     except OSError:
@@ -71,10 +74,12 @@ def machine() -> str:
 
 
 def command() -> str:
-    """The pytest command line that is running, with the ``PNEUSIM_*`` and ``OPENBLAS_*`` variables set."""
-    env = " ".join(f"{k}={v}" for k, v in sorted(os.environ.items())
-                   if k.startswith(("PNEUSIM_", "OPENBLAS_")) and k != "PNEUSIM_RESULTS_DIR"
-                   and not (k == "OPENBLAS_CORETYPE" and pinned_here()))
+    """The pytest command line that is running, with the ``PNEUSIM_*``, ``OPENBLAS_*`` and
+    ``NPY_DISABLE_CPU_FEATURES`` variables set (not those pneusim set itself)."""
+    env = " ".join(f"{k}={shlex.quote(v)}" for k, v in sorted(os.environ.items())
+                   if k.startswith(("PNEUSIM_", "OPENBLAS_", "NPY_DISABLE_CPU_FEATURES")) and k != "PNEUSIM_RESULTS_DIR"
+                   and not (k == "OPENBLAS_CORETYPE" and pinned_here())
+                   and not (k == "NPY_DISABLE_CPU_FEATURES" and numpy_pinned_here()))
     return " ".join(p for p in (env, "pytest", shlex.join(sys.argv[1:])) if p)
 
 

@@ -1,9 +1,11 @@
 """pneusim: physics of servo-pneumatic rigs, solved by SUNDIALS, for benchmarking identification."""
 
-# first, before anything loads NumPy: the same BLAS kernels on every x86-64 machine (see .arithmetic)
-from .arithmetic import pin_blas_kernels
+# first, before anything loads NumPy: the same BLAS kernels and NumPy loops on every x86-64 machine (see
+# .arithmetic)
+from .arithmetic import pin_blas_kernels, pin_numpy_dispatch
 
 pin_blas_kernels()
+pin_numpy_dispatch()
 
 from .version import __version__  # noqa: E402 - after the pin
 
