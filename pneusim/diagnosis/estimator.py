@@ -78,14 +78,13 @@ from .refits import (estimation_cost, fit_from_data_sheet, fit_nominal, noise_le
                      with_rescue_routes)
 from .result import DiagnosisResult
 from .rules import (AT_NOISE_ON_WINDOW, MAX_FINDINGS, MAX_FINDINGS_SEVERAL, MAX_LOOKALIKES, MAX_REFITS, MIN_SAMPLES, MODEL_SHORT,
-                    RIVAL_WINDOW,
                     SCREEN_SAMPLES, SET_EXPLAINS_WINDOW, SET_FIT_SHARE, SET_SHRINK, TIME_BUDGET_S, VALIDATION_FRACTION, VALIDATION_FRACTION_RANGE,
                     VALIDATION_MOTION_NOISE, WINDOW_SAMPLES,
                     default_budget_s, keep_test_text, noise_floor_points, passes_test, screening_route,
                     validation_room)
 from .run import DiagnosisRun, NominalBaseline
 from .signatures import compute_signatures
-from .window_sets import fit_set, search_sets
+from .window_sets import fit_best_set, search_sets
 
 __all__ = ["Diagnosis", "DiagnosisStages"]
 
@@ -368,7 +367,8 @@ class Diagnosis:
     def _joint(self, run: DiagnosisRun, name: str, budget: Budget | None = None):
         """5, where no effect alone explains the screening's window: sets of the window's leading effects pre-fitted
         together there (:func:`.window_sets.search_sets`); where the best is a set of two or more, it is fitted
-        whole and kept against the nominal model (:func:`.window_sets.fit_set`), each member is tested with the
+        whole and kept against the nominal model (:func:`.window_sets.fit_best_set`: where it ends far above noise,
+        its other variants too), each member is tested with the
         others present (8, drop-one), their fit gets the rescue routes where it skipped them and ends above noise
         (:func:`.refits.rescued`), the findings ranked by what each adds with the others present, and the search
         goes on on top of them where they leave the model above noise (7).  Returns ``(findings, final
@@ -399,19 +399,7 @@ class Diagnosis:
         self._say(name, f"the set that explains the window best: {best.label} "
                         f"({best.normalised_objective:.3g} times noise there)")
         with budget.share(SET_FIT_SHARE):
-            out = fit_set(run, best, window.base.normalised_objective)
-            if out is not None and out[2]:
-                # the whole part says the window chose wrong: the same effects through their other variants (a
-                # leak's other path) that the window ranked within RIVAL_WINDOW of the best, fitted whole too
-                for other in [w for w in run.window_sets[1:] if set(w.names) == set(best.names)
-                              and w.normalised_objective <= RIVAL_WINDOW * best.normalised_objective]:
-                    if not run.baseline.rms(out[1]) > MODEL_SHORT:
-                        break
-                    self._say(name, f"{best.label} ends {run.baseline.rms(out[1]):.3g} times noise on the "
-                                    f"estimation part: {other.label} fitted whole too")
-                    again = fit_set(run, other, window.base.normalised_objective)
-                    if again is not None and again[2] and again[1] < out[1]:
-                        best, out = other, again
+            best, out = fit_best_set(run, run.window_sets, window.base.normalised_objective)
         if out is None or not out[2]:
             return None
         fit, _, _ = out
