@@ -84,7 +84,7 @@ from .rules import (AT_NOISE_ON_WINDOW, MAX_FINDINGS, MAX_FINDINGS_SEVERAL, MAX_
                     validation_room)
 from .run import DiagnosisRun, NominalBaseline
 from .signatures import compute_signatures
-from .window_sets import fit_set, search_sets
+from .window_sets import fit_best_set, search_sets
 
 __all__ = ["Diagnosis", "DiagnosisStages"]
 
@@ -367,7 +367,8 @@ class Diagnosis:
     def _joint(self, run: DiagnosisRun, name: str, budget: Budget | None = None):
         """5, where no effect alone explains the screening's window: sets of the window's leading effects pre-fitted
         together there (:func:`.window_sets.search_sets`); where the best is a set of two or more, it is fitted
-        whole and kept against the nominal model (:func:`.window_sets.fit_set`), each member is tested with the
+        whole and kept against the nominal model (:func:`.window_sets.fit_best_set`: where it ends far above noise,
+        its other variants too), each member is tested with the
         others present (8, drop-one), their fit gets the rescue routes where it skipped them and ends above noise
         (:func:`.refits.rescued`), the findings ranked by what each adds with the others present, and the search
         goes on on top of them where they leave the model above noise (7).  Returns ``(findings, final
@@ -398,7 +399,7 @@ class Diagnosis:
         self._say(name, f"the set that explains the window best: {best.label} "
                         f"({best.normalised_objective:.3g} times noise there)")
         with budget.share(SET_FIT_SHARE):
-            out = fit_set(run, best, window.base.normalised_objective)
+            best, out = fit_best_set(run, run.window_sets, window.base.normalised_objective)
         if out is None or not out[2]:
             return None
         fit, _, _ = out

@@ -161,7 +161,9 @@ EXPLAINED = 1.5
 #: (ratio of window rms) a candidate whose pre-fit ends more than this above the best kept one's is no rival for
 #: the first finding: not fitted whole, screened as a second effect on top of it; and a subset of a set fitted
 #: jointly whose pre-fit ends more than this above the set's is no rival for the set: drop-one does not fit it
-#: from the data sheet
+#: from the data sheet; where the window's best set, fitted whole, ends more than MODEL_SHORT times above noise, the
+#: same effects through another variant (a leak's other path) whose pre-fit ends within this of the set's are
+#: fitted whole too
 RIVAL_WINDOW = 3.0
 #: (ratio of shares explained) a look-alike whose screening on top of the findings explains less than this
 #: fraction of what the candidate kept there explained is no rival for it: not refitted in its place

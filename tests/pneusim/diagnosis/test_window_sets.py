@@ -152,14 +152,14 @@ def test_a_set_must_explain_more_than_its_added_parameters_cost():
 def test_a_pair_that_leaves_the_window_far_above_noise_is_not_fitted_whole(monkeypatch):
     """The best pair of a window it leaves an order of magnitude above noise explains too little of it to choose
     the physics: it is not fitted whole, and the one-effect-first search decides; within that level it is."""
-    from pneusim.diagnosis import estimator
+    from pneusim.diagnosis import estimator, window_sets
     from pneusim.diagnosis.rules import SET_EXPLAINS_WINDOW
     from pneusim.diagnosis.run import WindowScreening
 
     for objective, fitted_whole in ((2.0 * SET_EXPLAINS_WINDOW, False), (0.5 * SET_EXPLAINS_WINDOW, True)):
         pair, fitted = WindowSet((HEAT, LOAD), _pre(objective)), []
         monkeypatch.setattr(estimator, "search_sets", lambda *args, **kwargs: [pair])
-        monkeypatch.setattr(estimator, "fit_set", lambda run, best, nominal: fitted.append(best))
+        monkeypatch.setattr(window_sets, "fit_set", lambda run, best, nominal: fitted.append(best))
         run = stand_in_run(NominalBaseline(NOISE, 1.0, N, 0.0, 0.2, 0.3, None))
         run.window = WindowScreening({}, _pre(60.0), True, {c.label: (c, _pre(40.0)) for c in (HEAT, LOAD)})
         assert estimator.Diagnosis()._joint(run, "stand-in") is None     # fit_set's stand-in: its whole fit failed
@@ -170,7 +170,7 @@ def test_a_pair_that_leaves_the_window_far_above_noise_is_not_fitted_whole(monke
 def test_a_pair_a_hair_below_the_best_single_effect_is_not_fitted_whole(monkeypatch):
     """The window's criterion counts its residuals as independent and lets a second effect in for a hair: a pair is
     fitted whole only where it ends at most SET_SHRINK of the best single effect's objective there."""
-    from pneusim.diagnosis import estimator
+    from pneusim.diagnosis import estimator, window_sets
     from pneusim.diagnosis.rules import SET_SHRINK
     from pneusim.diagnosis.run import WindowScreening
 
@@ -178,7 +178,7 @@ def test_a_pair_a_hair_below_the_best_single_effect_is_not_fitted_whole(monkeypa
         single = WindowSet((HEAT,), _pre(3.0))
         pair, fitted = WindowSet((HEAT, LOAD), _pre(3.0 * ratio)), []
         monkeypatch.setattr(estimator, "search_sets", lambda *args, **kwargs: [pair, single])
-        monkeypatch.setattr(estimator, "fit_set", lambda run, best, nominal: fitted.append(best))
+        monkeypatch.setattr(window_sets, "fit_set", lambda run, best, nominal: fitted.append(best))
         run = stand_in_run(NominalBaseline(NOISE, 1.0, N, 0.0, 0.2, 0.3, None))
         run.window = WindowScreening({}, _pre(60.0), True, {c.label: (c, _pre(40.0)) for c in (HEAT, LOAD)})
         assert estimator.Diagnosis()._joint(run, "stand-in") is None
@@ -230,3 +230,37 @@ def test_drop_one_fits_a_joint_sets_subset_as_the_set_was_fitted(single_rms, dro
     assert final.fit_percent == (99.6 if dropped else 99.3)
     assert ("from the data sheet as the set was fitted" in run.trials["leakage"].status) is dropped
     assert run.trials["leakage"].kept is not dropped
+
+
+@pytest.mark.parametrize("best_rms, expected", [(7.2, "leak from A"), (1.4, "leak from B")])
+def test_where_the_best_set_ends_far_above_noise_whole_its_other_paths_are_fitted_whole_too(monkeypatch, best_rms,
+                                                                                           expected):
+    """The window ranks a leak from B with an offset ahead of a leak from A with it; fitted whole, the set ends
+    ``best_rms`` times above noise.  Beyond MODEL_SHORT the same effects through another path, ranked within
+    RIVAL_WINDOW on the window, are fitted whole too and the lower kept (the path across the seal, ranked beyond
+    RIVAL_WINDOW, and a set of other effects are not); within MODEL_SHORT nothing else is fitted."""
+    from stand_ins import StandInFit
+
+    from pneusim.diagnosis import window_sets
+    from pneusim.diagnosis.rules import MODEL_SHORT, RIVAL_WINDOW
+
+    assert (best_rms > MODEL_SHORT) is (expected == "leak from A")
+    whole_rms = {"leak from B": best_rms, "leak from A": 1.3, "leak across the seal": 1.0}
+    by_path = {leak.label: WindowSet((leak, OFFSET), _pre(r)) for leak, r in
+               ((LEAK_B, 6.0), (LEAK_A, 6.9), (LEAK_AB, 6.0 * RIVAL_WINDOW + 1.0))}
+    sets = [by_path["leak from B"], WindowSet((LEAK_B, HEAT), _pre(6.2)), by_path["leak from A"],
+            by_path["leak across the seal"]]
+    fitted = []
+
+    def fit_set(run, window_set, nominal, ranked=None):
+        leak = window_set.candidates[0].label
+        fitted.append(window_set.label)
+        rms = whole_rms.get(leak, 1.0) if window_set.names == ("leakage", "valve_offset") else 1.0
+        return StandInFit(rms, 99.0), rms ** 2 * N, True
+
+    monkeypatch.setattr(window_sets, "fit_set", fit_set)
+    run = stand_in_run(NominalBaseline(NOISE, 30.0 ** 2 * N, N, 0.0, 0.2, 0.3, None))
+    chosen, (fit, cost, kept) = window_sets.fit_best_set(run, sets, 30.0)
+    assert chosen is by_path[expected] and fit.rms == whole_rms[expected] and kept
+    assert fitted == ([by_path["leak from B"].label, by_path["leak from A"].label] if best_rms > MODEL_SHORT
+                      else [by_path["leak from B"].label])
