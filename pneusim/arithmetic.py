@@ -59,6 +59,19 @@ def _cpu_flags(cpuinfo: str = "/proc/cpuinfo") -> set[str]:
     return set()
 
 
+def _may_pin(environ, variable: str, machine: str | None, flags: set[str] | None,
+             numpy_loaded: bool | None) -> bool:
+    """Whether a pin may set ``variable``: unset (a user's choice is kept), NumPy not loaded yet (it reads the
+    variables once, when it loads), and an x86-64 CPU with AVX2 and fused multiply-add."""
+    if variable in environ:
+        return False
+    if (("numpy" in sys.modules) if numpy_loaded is None else numpy_loaded):
+        return False
+    machine = platform.machine() if machine is None else machine
+    return (machine.lower() in ("x86_64", "amd64")
+            and _NEEDED_FLAGS <= (_cpu_flags() if flags is None else flags))
+
+
 def pin_blas_kernels(environ=None, machine: str | None = None, flags: set[str] | None = None,
                      numpy_loaded: bool | None = None) -> str | None:
     """Set ``OPENBLAS_CORETYPE`` to :data:`PINNED_CORETYPE` in ``environ`` (default ``os.environ``) where it is
@@ -67,11 +80,7 @@ def pin_blas_kernels(environ=None, machine: str | None = None, flags: set[str] |
     Returns the core type set, or None where nothing was set (the arguments other than ``environ`` stand in
     for the machine, for tests)."""
     environ = os.environ if environ is None else environ
-    if "OPENBLAS_CORETYPE" in environ:
-        return None
-    if (("numpy" in sys.modules) if numpy_loaded is None else numpy_loaded):
-        return None
-    if not _x86_with_avx2_fma(machine, flags):
+    if not _may_pin(environ, "OPENBLAS_CORETYPE", machine, flags, numpy_loaded):
         return None
     environ["OPENBLAS_CORETYPE"] = PINNED_CORETYPE
     if environ is os.environ:
@@ -80,10 +89,6 @@ def pin_blas_kernels(environ=None, machine: str | None = None, flags: set[str] |
     return PINNED_CORETYPE
 
 
-def _x86_with_avx2_fma(machine: str | None, flags: set[str] | None) -> bool:
-    machine = platform.machine() if machine is None else machine
-    return (machine.lower() in ("x86_64", "amd64")
-            and _NEEDED_FLAGS <= (_cpu_flags() if flags is None else flags))
 
 
 def _numpy_names(numpy_version: str | None) -> str:
@@ -108,11 +113,7 @@ def pin_numpy_dispatch(environ=None, machine: str | None = None, flags: set[str]
     Returns the value set, or None where nothing was set (the other arguments stand in for the machine and
     the installed NumPy's version, for tests)."""
     environ = os.environ if environ is None else environ
-    if "NPY_DISABLE_CPU_FEATURES" in environ:
-        return None
-    if (("numpy" in sys.modules) if numpy_loaded is None else numpy_loaded):
-        return None
-    if not _x86_with_avx2_fma(machine, flags):
+    if not _may_pin(environ, "NPY_DISABLE_CPU_FEATURES", machine, flags, numpy_loaded):
         return None
     value = " ".join(_ABOVE_V3[_numpy_names(numpy_version)])
     environ["NPY_DISABLE_CPU_FEATURES"] = value
