@@ -368,10 +368,10 @@ class Diagnosis:
         """5, where no effect alone explains the screening's window: sets of the window's leading effects pre-fitted
         together there (:func:`.window_sets.search_sets`); where the best is a set of two or more, it is fitted
         whole and kept against the nominal model (:func:`.window_sets.fit_best_set`: where it ends far above noise,
-        its other variants too), each member is tested with the
-        others present (8, drop-one), their fit gets the rescue routes where it skipped them and ends above noise
-        (:func:`.refits.rescued`), the findings ranked by what each adds with the others present, and the search
-        goes on on top of them where they leave the model above noise (7).  Returns ``(findings, final
+        its other variants too), each member is tested with the others present (8, drop-one), their fit gets the
+        rescue routes where it skipped them and ends above noise (:func:`.refits.rescued`), the findings ranked by
+        what each adds with the others present, and the search goes on on top of them where they leave the model
+        above noise (7).  Returns ``(findings, final
         fit)``, or None where the one-effect-first confirmation is to run instead (a single effect explains the
         window, the best set is a single effect, leaves the window above :data:`~.rules.SET_EXPLAINS_WINDOW` times
         noise or above :data:`~.rules.SET_SHRINK` of the best single effect's objective, or its whole fit failed the
