@@ -65,7 +65,8 @@ def machine() -> str:
     if kernels:
         parts.append(f"BLAS kernels {', '.join(kernels)}" + (" (pinned by pneusim)" if pinned_here() else ""))
     loops = numpy_dispatch()
-    parts.append(f"NumPy loops {', '.join(loops) or 'baseline'}" + (" (pinned by pneusim)" if numpy_pinned_here() else ""))
+    parts.append(f"NumPy loops {', '.join(loops) or 'baseline'}"
+                 + (" (pinned by pneusim)" if numpy_pinned_here() else ""))
     try:
         parts.append(f"load {os.getloadavg()[0]:.1f}")
     except OSError:
@@ -77,7 +78,8 @@ def command() -> str:
     """The pytest command line that is running, with the ``PNEUSIM_*``, ``OPENBLAS_*`` and
     ``NPY_DISABLE_CPU_FEATURES`` variables set (not those pneusim set itself)."""
     env = " ".join(f"{k}={shlex.quote(v)}" for k, v in sorted(os.environ.items())
-                   if k.startswith(("PNEUSIM_", "OPENBLAS_", "NPY_DISABLE_CPU_FEATURES")) and k != "PNEUSIM_RESULTS_DIR"
+                   if k.startswith(("PNEUSIM_", "OPENBLAS_", "NPY_DISABLE_CPU_FEATURES"))
+                   and k != "PNEUSIM_RESULTS_DIR"
                    and not (k == "OPENBLAS_CORETYPE" and pinned_here())
                    and not (k == "NPY_DISABLE_CPU_FEATURES" and numpy_pinned_here()))
     return " ".join(p for p in (env, "pytest", shlex.join(sys.argv[1:])) if p)

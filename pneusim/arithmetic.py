@@ -1,4 +1,5 @@
-"""One arithmetic path on every x86-64 machine: OpenBLAS's kernels and NumPy's SIMD loops pinned to one CPU family's.
+"""One arithmetic path on every x86-64 machine: OpenBLAS's kernels and NumPy's SIMD loops pinned to one CPU
+family's.
 
 OpenBLAS picks its kernels for the CPU it finds (``SkylakeX`` on an AVX-512 Xeon, ``Haswell`` on an AMD EPYC),
 and each sums in another order, so a product's last bits depend on the machine.  A fit that ends where the model
@@ -87,8 +88,6 @@ def pin_blas_kernels(environ=None, machine: str | None = None, flags: set[str] |
         global _pinned_here
         _pinned_here = PINNED_CORETYPE
     return PINNED_CORETYPE
-
-
 
 
 def _numpy_names(numpy_version: str | None) -> str:

@@ -99,10 +99,10 @@ print(",".join(numpy_dispatch()), digest)"""], env=env, capture_output=True, tex
 @pytest.mark.skipif(not {"avx2", "fma"} <= _cpu_flags(), reason="the CPU has no AVX2 with FMA")
 def test_numpy_runs_an_avx2_machines_loops_after_import_pneusim():
     """After ``import pneusim`` NumPy dispatches to no AVX-512 loop and its transcendental functions give the
-    bits of a process whose AVX-512 loops the user switched off by hand; a user's variable wins; a process that
-    loaded NumPy first keeps its CPU's own loops."""
+    bits of a process whose AVX-512 loops the user switched off by hand; a process that loaded NumPy first keeps
+    its CPU's own loops (a user's variable winning is :func:`test_leaves_the_numpy_loops_alone`'s first case)."""
     targets, digest = _numpy_loops_in_a_fresh_process("import pneusim")
-    assert targets == ["X86_V3"] or not any(t.startswith(("X86_V4", "AVX512")) for t in targets)
+    assert not any(t.startswith(("X86_V4", "AVX512")) for t in targets)
     names = pin_numpy_dispatch({}, "x86_64", AVX2_FMA, numpy_loaded=False)
     by_hand = _numpy_loops_in_a_fresh_process("import numpy", NPY_DISABLE_CPU_FEATURES=names)
     assert digest == by_hand[1]
